@@ -1,0 +1,65 @@
+"""Drive a real Jupyter kernel from tests, as JupyterLab or nbval would."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import tempfile
+import time
+
+from jupyter_client import KernelManager
+
+
+class KernelSession:
+    """A started IPython kernel of this venv, with helpers to run cells and read outputs."""
+
+    def __init__(self, cwd: str):
+        self.stderr_file = tempfile.TemporaryFile(mode="w+")
+        env = dict(os.environ)
+        env.pop("ROS_DOMAIN_ID", None)
+        self.km = KernelManager(kernel_name="python3")
+        self.km.start_kernel(cwd=cwd, env=env, stderr=self.stderr_file,
+                             stdout=subprocess.DEVNULL,
+                             extra_arguments=[], independent=False)
+        self.process = self.km.provisioner.process
+        self.client = self.km.client()
+        self.client.start_channels()
+        self.client.wait_for_ready(timeout=60)
+
+    def run(self, code: str, timeout: float = 60, interrupt_after: float | None = None):
+        """Execute a cell; return (outputs, error) where outputs are stream/display texts."""
+        msg_id = self.client.execute(code)
+        outputs, error = [], None
+        deadline = time.monotonic() + timeout
+        interrupt_at = time.monotonic() + interrupt_after if interrupt_after else None
+        while True:
+            if interrupt_at and time.monotonic() > interrupt_at:
+                self.km.interrupt_kernel()
+                interrupt_at = None
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"cell did not finish in {timeout} s: {code[:60]!r}")
+            try:
+                msg = self.client.get_iopub_msg(timeout=0.2)
+            except Exception:
+                continue
+            if msg["parent_header"].get("msg_id") != msg_id:
+                continue
+            kind, content = msg["msg_type"], msg["content"]
+            if kind == "stream":
+                outputs.append(content["text"])
+            elif kind in ("display_data", "execute_result"):
+                outputs.append(content["data"].get("text/plain", ""))
+            elif kind == "error":
+                error = content["ename"]
+            elif kind == "status" and content["execution_state"] == "idle":
+                return "".join(outputs), error
+
+    def shutdown(self) -> tuple[int | None, str]:
+        """Ask the kernel to shut down (as the Lab's 'Shut Down Kernel' does); (exit code, stderr)."""
+        if self.process.poll() is None:
+            self.client.stop_channels()
+            self.km.shutdown_kernel(now=False)
+        code = self.process.wait(timeout=30)
+        self.stderr_file.seek(0)
+        return code, self.stderr_file.read()
+

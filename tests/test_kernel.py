@@ -1,0 +1,86 @@
+"""The runtime inside a real Jupyter kernel: interrupts, re-runs, output routing, clean exit."""
+
+from __future__ import annotations
+
+import pytest
+
+from .conftest import REPO
+from .kernel_session import KernelSession
+
+SETUP = """
+from course_helpers import get_runtime
+from course_helpers.nodes import Talker, Listener
+rt = get_runtime()
+rt.add(Talker, rate_hz=100)
+listener = rt.add(Listener)
+rt.wait_until(lambda: len(listener.heard) > 5, 10)
+"""
+
+PRINTER = """
+from rclpy.node import Node
+
+class Printer(Node):
+    def __init__(self):
+        super().__init__('printer')
+        self.timer = self.create_timer(0.05, self.tick)  # 20 Hz
+
+    def tick(self):
+        print('tick from the printer')
+        self.get_logger().info('log from the printer')
+
+printer = rt.add(Printer)
+"""
+
+
+@pytest.fixture
+def kernel():
+    session = KernelSession(cwd=REPO)
+    yield session
+    try:
+        session.shutdown()
+    except Exception:
+        pass
+
+
+def test_interrupt_does_not_stop_ros_and_shutdown_is_clean(kernel):
+    out, error = kernel.run(SETUP)
+    assert error is None, out
+    _, error = kernel.run("rt.wait_until(lambda: False, 60, 'forever')", interrupt_after=1.5)
+    assert error == "KeyboardInterrupt"
+    out, error = kernel.run(
+        "n = len(listener.heard)\n"
+        "rt.wait_until(lambda: len(listener.heard) > n + 20, 5)\n"
+        "print('delivering', rt.context.ok())"
+    )
+    assert error is None and "delivering True" in out
+    code, stderr = kernel.shutdown()
+    assert "terminate called" not in stderr, stderr
+    assert code == 0, stderr
+
+
+def test_rerunning_cells_leaves_no_duplicates(kernel):
+    for _ in range(3):
+        out, error = kernel.run(SETUP)
+        assert error is None, out
+    out, error = kernel.run(
+        "import threading, time\n"
+        "time.sleep(1.0)\n"
+        "print(rt.nodes(), rt.graph_nodes())\n"
+        "print(sum(t.name == 'ros-executor' for t in threading.enumerate()))"
+    )
+    assert error is None, out
+    assert "['/listener', '/talker'] ['/listener', '/talker']" in out
+    assert out.strip().endswith("1")
+
+
+def test_callback_output_goes_to_the_node_console_not_the_running_cell(kernel):
+    kernel.run(SETUP)
+    out, error = kernel.run(PRINTER)
+    assert error is None, out
+    assert "Output(" in out  # the node's console is shown under the cell that added it
+    out, error = kernel.run("import time; time.sleep(1.0); print('other cell done')")
+    assert error is None
+    assert out == "other cell done\n"
+    out, _ = kernel.run("print(rt._router.console_for('printer').text())")
+    assert "tick from the printer" in out
+    assert "log from the printer" in out and "[INFO]" in out

@@ -1,0 +1,172 @@
+"""The kernel runtime (issue: foundation), with real nodes over real Fast DDS."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import pytest
+from std_msgs.msg import String
+
+from course_helpers import CourseError, WaitTimeout
+from course_helpers.nodes import Listener, Talker
+
+from .conftest import run_python
+
+
+def test_recreating_a_node_by_name_leaves_one_node(rt):
+    first = rt.add(Talker, rate_hz=20)
+    second = rt.add(Talker, rate_hz=20)
+    assert first is not second
+    rt.wait_until(lambda: rt.graph_nodes().count("/talker") == 1, 5, "one /talker")
+    time.sleep(0.5)  # give discovery time to show a leftover, if there were one
+    names = [n for n, _ in rt.graph.get_node_names_and_namespaces() if n == "talker"]
+    assert names == ["talker"]
+    assert rt.nodes() == ["/talker"]
+
+
+def test_talker_reaches_listener(rt):
+    rt.add(Talker, rate_hz=50)
+    listener = rt.add(Listener)
+    rt.wait_until(lambda: len(listener.heard) >= 5, 5, "five messages")
+    assert listener.heard[0].startswith("hello ")
+
+
+def test_sigint_while_waiting_does_not_stop_ros():
+    result = run_python("""
+        import os, signal, time
+        from course_helpers import get_runtime
+        from course_helpers.nodes import Talker, Listener
+        rt = get_runtime()
+        rt.add(Talker, rate_hz=100)
+        listener = rt.add(Listener)
+        try:
+            signal.setitimer(signal.ITIMER_REAL, 0.3)
+            signal.signal(signal.SIGALRM, lambda *a: os.kill(os.getpid(), signal.SIGINT))
+            rt.wait_until(lambda: False, 5, "an interrupt")
+        except KeyboardInterrupt:
+            print("interrupted")
+        before = len(listener.heard)
+        rt.wait_until(lambda: len(listener.heard) >= before + 20, 5, "messages after SIGINT")
+        print("still delivering", rt.context.ok())
+        rt.stop()
+    """)
+    assert result.returncode == 0, result.stderr
+    assert "interrupted" in result.stdout
+    assert "still delivering True" in result.stdout
+
+
+def test_start_and_stop_exit_cleanly():
+    result = run_python("""
+        from course_helpers import get_runtime
+        from course_helpers.nodes import Talker, Listener
+        rt = get_runtime()
+        rt.add(Talker, rate_hz=200)
+        listener = rt.add(Listener)
+        rt.wait_until(lambda: len(listener.heard) > 10, 5)
+        # no explicit stop: the atexit hook must join the executor thread
+    """)
+    assert result.returncode == 0, result.stderr
+    assert "terminate called" not in result.stderr
+    assert "Abort" not in result.stderr
+
+
+def test_two_processes_with_automatic_domains_do_not_see_each_other(rt):
+    rt.add(Talker, name="talker_here")
+    result = run_python("""
+        import time
+        from course_helpers import get_runtime
+        from course_helpers.nodes import Talker
+        rt = get_runtime()
+        rt.add(Talker, name="talker_there")
+        print("domain", rt.domain.domain_id)
+        time.sleep(2.0)
+        print("seen", rt.graph_nodes())
+        rt.stop()
+    """)
+    assert result.returncode == 0, result.stderr
+    other_domain = int(result.stdout.split("domain ")[1].split()[0])
+    assert other_domain != rt.domain.domain_id
+    assert "/talker_here" not in result.stdout
+    assert "/talker_there" not in rt.graph_nodes()
+
+
+def test_child_process_node_is_reaped(rt):
+    child = rt.spawn("relay", "course_helpers.nodes:make_relay", wait_for="/relay")
+    rt.add(Talker, rate_hz=50)
+    relayed = rt.wait_for_messages("chatter_relayed", String, count=2, timeout=10)
+    assert relayed[0].data.startswith("hello ")
+    pid = child.pid
+    assert rt.stop_child("relay") == 0
+    assert not child.alive
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)
+
+
+def test_respawning_a_child_by_name_replaces_it(rt):
+    first = rt.spawn("talker_proc", "course_helpers.nodes:make_talker",
+                     params={"name": "proc_talker"})
+    second = rt.spawn("talker_proc", "course_helpers.nodes:make_talker",
+                     params={"name": "proc_talker"})
+    assert not first.alive and second.alive
+    assert list(rt.children()) == ["talker_proc"]
+
+
+def test_children_are_reaped_when_the_runtime_stops():
+    result = run_python("""
+        from course_helpers import get_runtime
+        rt = get_runtime()
+        child = rt.spawn("t", "course_helpers.nodes:make_talker", wait_for="/talker")
+        print("pid", child.pid)
+    """)
+    assert result.returncode == 0, result.stderr
+    pid = int(result.stdout.split("pid ")[1].split()[0])
+    deadline = time.monotonic() + 3
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(pid, signal.SIGKILL)
+        pytest.fail("child process outlived its runtime")
+
+
+@pytest.mark.parametrize("call, expected", [
+    (lambda rt: rt.node("bad name"), "invalid node name 'bad name'"),
+    (lambda rt: rt.node("ok", namespace="/1bad"), "invalid namespace"),
+    (lambda rt: rt.wait_for_messages("bad topic!", String), "invalid topic name"),
+    (lambda rt: rt.wait_for_messages("chatter", "std_msgs/msg/Nope"), "unknown interface type"),
+    (lambda rt: rt.wait_for_messages("chatter", "String"), "package/msg/Name"),
+    (lambda rt: rt.wait_for_messages("chatter", String, qos=-1), "history depth"),
+    (lambda rt: rt.wait_for_messages("chatter", String, count=0), "count must be"),
+    (lambda rt: rt.add(42), "rt.add() takes a Node subclass"),
+    (lambda rt: rt.spawn("x", "no_colon"), "package.module:callable"),
+    (lambda rt: rt.get("/nobody"), "no node '/nobody'"),
+])
+def test_bad_input_gives_a_clear_error_and_the_runtime_keeps_working(rt, call, expected):
+    with pytest.raises(CourseError, match=expected.replace("(", r"\(").replace(")", r"\)")):
+        call(rt)
+    listener = rt.add(Listener)
+    rt.add(Talker, rate_hz=50)
+    rt.wait_until(lambda: listener.heard, 5, "a message after the error")
+
+
+def test_wait_timeout_names_what_it_waited_for(rt):
+    with pytest.raises(WaitTimeout, match="1 message.*nothing_here"):
+        rt.wait_for_messages("nothing_here", String, timeout=0.3)
+
+
+def test_a_failing_callback_is_reported_and_others_keep_running(rt):
+    class Faulty(Talker):
+        def tick(self):
+            raise RuntimeError("boom")
+
+    errors_before = len(rt.errors)
+    rt.add(Faulty, name="faulty", rate_hz=50)
+    rt.add(Talker, rate_hz=50)
+    listener = rt.add(Listener)
+    rt.wait_until(lambda: len(listener.heard) >= 3 and len(rt.errors) > errors_before, 5)
+    assert "boom" in rt.errors[-1]
