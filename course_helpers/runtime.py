@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import atexit
 import os
+import sys
 import tempfile
 import threading
 import time
@@ -40,8 +41,14 @@ from . import console as _console
 from .domains import DomainChoice, choose_domain
 from .errors import CourseError, WaitTimeout
 from .processes import ChildNode, start_child
-from .validation import check_depth, check_namespace, check_node_name, check_topic_name
-from .validation import interface_name, resolve_interface
+from .validation import (
+    check_depth,
+    check_namespace,
+    check_node_name,
+    check_topic_name,
+    interface_name,
+    resolve_interface,
+)
 
 INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's daemon nodes
 _POLL_S = 0.005
@@ -515,7 +522,22 @@ def get_runtime(executor: str | None = None) -> CourseRuntime:
         atexit.register(_stop_at_exit)
     elif executor is not None and executor != _runtime.executor_kind:
         _runtime.restart(executor)
-    return _runtime.start()
+    _runtime.start()
+    _register_magics_once()
+    return _runtime
+
+
+def _register_magics_once() -> None:
+    """Make ``%ros2`` available in the notebook as soon as the runtime is used."""
+    shell = _console.in_jupyter_kernel() and sys.modules["IPython"].get_ipython()
+    if not shell or getattr(shell, "_course_ros2_magics", False):
+        return
+    try:
+        from .magics import register_magics
+    except ImportError:  # the magics module is optional for plain-Python use
+        return
+    register_magics(shell)
+    shell._course_ros2_magics = True
 
 
 def shutdown_runtime() -> None:

@@ -1,0 +1,86 @@
+"""Exercise checkers: run a student's code against real nodes and report each criterion.
+
+Every chapter's exercises end with ``check_...(student_code)``. A checker starts
+real nodes with scripted inputs, watches what the student's node does, and
+returns a :class:`CheckReport`: one line per criterion, passed or failed, with a
+hint for each failure. Chapter modules live beside this file
+(``checks/topics.py`` for chapter 03, ...); reference solutions live in
+``course_helpers/solutions/`` so instructors' CI proves that every checker
+accepts a correct solution and rejects a wrong one.
+"""
+
+from __future__ import annotations
+
+import html
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+
+@dataclass
+class Criterion:
+    """One thing a checker verifies, with the hint shown when it fails."""
+
+    name: str
+    passed: bool
+    detail: str = ""
+    hint: str = ""
+
+
+@dataclass
+class CheckReport:
+    """The result of a checker: ``passed`` only when every criterion passed."""
+
+    exercise: str
+    criteria: list[Criterion] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.criteria) and all(c.passed for c in self.criteria)
+
+    def add(self, name: str, passed: bool, detail: str = "", hint: str = "") -> bool:
+        """Record a criterion; returns ``passed`` so checkers can stop early."""
+        self.criteria.append(Criterion(name, bool(passed), detail, hint))
+        return bool(passed)
+
+    def run(self, name: str, step: Callable[[], object], hint: str = "") -> object | None:
+        """Run ``step``; an exception becomes a failed criterion with the error as detail."""
+        try:
+            return step()
+        except Exception as exc:  # the student's code raised: report it, do not crash
+            last = traceback.format_exception_only(type(exc), exc)[-1].strip()
+            self.add(name, False, last, hint)
+            return None
+
+    def summary(self) -> str:
+        """Plain text, one line per criterion (what nbval compares)."""
+        verdict = "PASSED" if self.passed else "NOT YET"
+        lines = [f"{self.exercise}: {verdict} "
+                 f"({sum(c.passed for c in self.criteria)}/{len(self.criteria)} criteria)"]
+        for c in self.criteria:
+            line = f"  [{'pass' if c.passed else 'FAIL'}] {c.name}"
+            if c.detail:
+                line += f" - {c.detail}"
+            lines.append(line)
+            if not c.passed and c.hint:
+                lines.append(f"         hint: {c.hint}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        rows = []
+        for c in self.criteria:
+            colour = "#1a7f37" if c.passed else "#cf222e"
+            mark = "&#10004;" if c.passed else "&#10008;"
+            hint = (f"<br><small>Hint: {html.escape(c.hint)}</small>"
+                    if c.hint and not c.passed else "")
+            detail = f" <small>({html.escape(c.detail)})</small>" if c.detail else ""
+            rows.append(f"<li style='color:{colour}'>{mark} {html.escape(c.name)}{detail}{hint}</li>")
+        verdict = "passed" if self.passed else "not passed yet"
+        return (f"<div><b>{html.escape(self.exercise)}: {verdict}</b>"
+                f"<ul style='list-style:none'>{''.join(rows)}</ul></div>")
+
+    def _repr_pretty_(self, printer, cycle):
+        printer.text(self.summary())
