@@ -194,9 +194,12 @@ class CourseRuntime:
 
     def _spin(self) -> None:
         executor, context = self.executor, self.context
-        while not self._stop.is_set() and context.ok():
+        stop_requested = self._stop.is_set
+        while not stop_requested() and context.ok():
             try:
-                executor.spin_once(timeout_sec=1.0)
+                # No timeout (a timeout costs a new rcl timer per wait); stop() sets the
+                # stop flag and wakes the executor, which ends the wait.
+                executor._spin_once_impl(None, stop_requested)
             except Exception as exc:  # never let one bad callback end the thread
                 self._record_error(None, "the executor", exc)
         self._router.enter(None)
