@@ -9,8 +9,11 @@ from __future__ import annotations
 import importlib
 import re
 
-from rclpy.exceptions import InvalidNamespaceException, InvalidNodeNameException
-from rclpy.exceptions import InvalidTopicNameException
+from rclpy.exceptions import (
+    InvalidNamespaceException,
+    InvalidNodeNameException,
+    InvalidTopicNameException,
+)
 from rclpy.validate_namespace import validate_namespace
 from rclpy.validate_node_name import validate_node_name
 from rclpy.validate_topic_name import validate_topic_name
