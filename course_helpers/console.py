@@ -127,7 +127,9 @@ class ConsoleRouter:
         if show:
             from IPython.display import display
 
-            display(console.widget)
+            bundle = dict(console.widget._repr_mimebundle_())
+            bundle["text/plain"] = f"[console of {title}]"
+            display(bundle, raw=True)
         return console
 
     def close(self, logger_name: str) -> None:

@@ -128,4 +128,5 @@ def _check_class(cls, kind):
 
 def _reason(exc: Exception) -> str:
     text = str(exc).splitlines()[0]
-    return text.split(":", 1)[-1].strip() if ":" in text else text
+    text = text.split(":", 1)[-1] if ":" in text else text
+    return text.strip().rstrip(":")
