@@ -40,6 +40,11 @@ class Question:
     explanation: str = ""
 
     def __post_init__(self):
+        self.choices = list(self.choices)
+        for choice in self.choices:
+            if not isinstance(choice, Choice):
+                raise CourseError(f"question {self.prompt!r}: each choice must be "
+                                  f"Choice(text, correct, feedback), got {choice!r}")
         if len(self.choices) < 2:
             raise CourseError(f"question {self.prompt!r} needs at least 2 choices")
         if not any(c.correct for c in self.choices):
@@ -53,6 +58,15 @@ class Quiz:
     title: str
     questions: list[Question]
     picks: dict[int, int] = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.questions = list(self.questions)
+        if not self.questions:
+            raise CourseError(f"quiz {self.title!r} needs at least one question")
+        for question in self.questions:
+            if not isinstance(question, Question):
+                raise CourseError(f"quiz {self.title!r}: each question must be "
+                                  f"Question(prompt, [Choice(...), ...]), got {question!r}")
 
     def answer(self, question: int, choice: int) -> Choice:
         """Pick ``choice`` (0-based) for ``question`` (0-based); return it with its feedback."""

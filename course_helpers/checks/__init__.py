@@ -12,7 +12,6 @@ accepts a correct solution and rejects a wrong one.
 from __future__ import annotations
 
 import html
-import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -48,8 +47,7 @@ class CheckReport:
         try:
             return step()
         except Exception as exc:  # the student's code raised: report it, do not crash
-            last = traceback.format_exception_only(type(exc), exc)[-1].strip()
-            self.add(name, False, last, hint)
+            self.add(name, False, _describe(exc), hint)
             return None
 
     def summary(self) -> str:
@@ -84,3 +82,9 @@ class CheckReport:
 
     def _repr_pretty_(self, printer, cycle):
         printer.text(self.summary())
+
+
+def _describe(exc: BaseException) -> str:
+    """``ValueError: message``: the error's class and message, without notes or module path."""
+    message = str(exc).strip()
+    return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
