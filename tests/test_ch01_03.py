@@ -1,0 +1,331 @@
+"""Chapters 01-03: architecture helpers, timing measurements, sensor nodes and the topic checkers.
+
+Real nodes over real Fast DDS. Timing bounds are loose: the machine has 2 shared cores.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+
+import pytest
+import rclpy
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from std_msgs.msg import Float64
+
+from course_helpers import CourseError
+from course_helpers.architecture import (
+    ChatterCounter,
+    check_crash_exercise,
+    classify_port,
+    count_during,
+    layer_stack,
+    loaded_libraries,
+    transports_in_use,
+)
+from course_helpers.checks.topics import check_cmd_vel_logger, check_throughput, check_tilt_warning
+from course_helpers.sensors import (
+    CmdVelPublisher,
+    ImuPublisher,
+    TemperatureSensor,
+    imu_message,
+    measure_bandwidth,
+    message_size,
+    quaternion_from_rpy,
+)
+from course_helpers.solutions import topics as solution
+from course_helpers.timing import check_responsive_robot, measure_blocking, measure_timer_jitter, spin_for
+
+
+# ---------------------------------------------------------------------- chapter 01
+def test_layer_stack_finds_fastrtps_rmw_and_fast_dds(rt):
+    layers = {layer.name: layer for layer in layer_stack()}
+    assert rclpy.get_rmw_implementation_identifier() == "rmw_fastrtps_cpp"
+    assert "librmw_fastrtps_cpp.so" in layers["rmw_fastrtps_cpp"].libraries
+    assert any(lib.startswith("libfastrtps.so") for lib in layers["Fast DDS"].libraries)
+    assert all(layer.loaded for layer in layers.values()), layers
+    assert layers["Fast DDS"].version.startswith("2.")
+    assert "librcl.so" in loaded_libraries(r"^librcl\.so")
+
+
+def test_transports_show_shared_memory_and_unicast_ports(rt):
+    transports = transports_in_use(rt.domain.domain_id)
+    assert transports.uses_shm and any(f.startswith("fastrtps_") for f in transports.shm_files)
+    meanings = [meaning for _port, meaning in transports.udp_ports]
+    assert any(m.startswith("discovery, unicast") for m in meanings), meanings
+    assert any(m.startswith("user data, unicast") for m in meanings), meanings
+
+
+def test_port_classification_follows_the_rtps_mapping():
+    assert classify_port(7400, 0) == "discovery, multicast"
+    assert classify_port(7410, 0) == "discovery, unicast (participant 0)"
+    assert classify_port(7400 + 250 * 5 + 13, 5) == "user data, unicast (participant 1)"
+
+
+def test_killing_one_node_process_leaves_the_others_talking(rt):
+    a = rt.spawn("talker_a", "course_helpers.architecture:make_named_talker",
+                 {"name": "talker_a", "rate_hz": 20}, wait_for="/talker_a")
+    rt.spawn("talker_b", "course_helpers.architecture:make_named_talker",
+             {"name": "talker_b", "rate_hz": 20}, wait_for="/talker_b")
+    counter = rt.add(ChatterCounter)
+    rt.wait_until(lambda: counter.counts["talker_a"] and counter.counts["talker_b"], 10, "both talkers")
+    before = count_during(counter, 1.0)
+    assert before["talker_a"] > 5 and before["talker_b"] > 5, before
+    a.kill()
+    assert not a.alive
+    time.sleep(0.2)
+    after = count_during(counter, 1.0)
+    assert after["talker_a"] == 0, after
+    assert after["talker_b"] > 5, after
+
+
+def test_crash_exercise_checker(rt):
+    rt.spawn("talker_a", "course_helpers.architecture:make_named_talker", {"name": "talker_a"},
+             wait_for="/talker_a")
+    b = rt.spawn("talker_b", "course_helpers.architecture:make_named_talker", {"name": "talker_b"},
+                 wait_for="/talker_b")
+    counter = rt.add(ChatterCounter)
+    rt.wait_until(lambda: counter.counts["talker_b"] > 0, 10, "talker_b")
+    rt.children()["talker_a"].kill()
+    not_yet = check_crash_exercise(rt, counter, window_s=1.0)
+    assert not not_yet.passed
+    assert "still hearing talker_b" in not_yet.summary()
+    rt.spawn("talker_c", "course_helpers.architecture:make_named_talker", {"name": "talker_c"},
+             wait_for="/talker_c")
+    b.kill()
+    time.sleep(0.2)
+    done = check_crash_exercise(rt, counter, window_s=1.0)
+    assert done.passed, done.summary()
+
+
+# ---------------------------------------------------------------------- chapter 02
+def test_blocking_callback_stalls_a_single_threaded_executor(rt):
+    single = measure_blocking("single", separate_groups=False, duration_s=1.5, block_s=0.3)
+    assert single.max_gap_s > 0.3, single.max_gap_s
+    assert single.tick_count > 10
+
+
+def test_one_default_group_stalls_even_with_many_threads(rt):
+    multi = measure_blocking("multi", separate_groups=False, duration_s=1.5, block_s=0.3)
+    assert multi.max_gap_s > 0.3, multi.max_gap_s
+
+
+def test_separate_callback_groups_with_threads_keep_the_timer_regular(rt):
+    fixed = measure_blocking("multi", separate_groups=True, duration_s=1.5, block_s=0.3)
+    assert fixed.max_gap_s < 0.15, fixed.max_gap_s
+    assert fixed.tick_count > 40
+
+
+def test_timer_jitter_grows_with_a_cpu_heavy_callback(rt):
+    idle = measure_timer_jitter(period_s=0.01, duration_s=1.5)
+    loaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=8)
+    assert len(idle.intervals_s) > 100 and len(loaded.intervals_s) > 100
+    assert abs(statistics_median(idle.intervals_s) - 0.01) < 0.002
+    assert loaded.worst_ms > 3.0, loaded.summary()
+    assert loaded.percentile_ms(95) > idle.percentile_ms(95), (idle.summary(), loaded.summary())
+
+
+def statistics_median(values):
+    ordered = sorted(values)
+    return ordered[len(ordered) // 2]
+
+
+def test_spin_for_rejects_bad_arguments(rt):
+    with pytest.raises(CourseError):
+        spin_for(TemperatureSensor, 1.0, executor="threads")
+    with pytest.raises(CourseError):
+        measure_timer_jitter(heavy_ms=50, heavy_period_s=0.03)
+
+
+class Robot(Node):
+    """The exercise's node; ``grouped=True`` is the fix (the heartbeat in its own group)."""
+
+    def __init__(self, grouped: bool = False):
+        super().__init__("robot")
+        self.beats, self.frames, self.plans = [], 0, 0
+        beat_group = MutuallyExclusiveCallbackGroup() if grouped else None
+        slow_group = MutuallyExclusiveCallbackGroup() if grouped else None
+        self.heartbeat_timer = self.create_timer(0.1, self.heartbeat, callback_group=beat_group)
+        self.camera_timer = self.create_timer(0.2, self.camera, callback_group=slow_group)
+        self.planner_timer = self.create_timer(0.5, self.planner, callback_group=slow_group)
+
+    def heartbeat(self):
+        self.beats.append(time.monotonic())
+
+    def camera(self):
+        time.sleep(0.05)
+        self.frames += 1
+
+    def planner(self):
+        time.sleep(0.3)
+        self.plans += 1
+
+
+def test_responsive_robot_checker_accepts_grouped_callbacks(rt):
+    report = check_responsive_robot(lambda: Robot(grouped=True))
+    assert report.passed, report.summary()
+
+
+def test_responsive_robot_checker_rejects_the_default_group(rt):
+    report = check_responsive_robot(Robot)
+    assert not report.passed
+    assert "the heartbeat waited for the planner" in report.summary()
+
+
+# ---------------------------------------------------------------------- chapter 03 nodes
+def test_quaternion_and_imu_message_describe_the_tilt():
+    x, y, z, w = quaternion_from_rpy(0, 0, 90)
+    assert math.isclose(z, math.sin(math.pi / 4)) and math.isclose(w, math.cos(math.pi / 4))
+    msg = imu_message(roll_deg=30)
+    assert math.isclose(solution.tilt_deg(msg.orientation), 30.0, abs_tol=1e-9)
+    assert math.isclose(msg.linear_acceleration.z, 9.80665 * math.cos(math.radians(30)))
+    assert message_size(imu_message(frame_id="imu_0")) == 324
+
+
+def test_imu_publisher_tilt_can_be_changed_live(rt):
+    imu = rt.add(ImuPublisher, rate_hz=50)
+    imu.set_tilt(roll_deg=20)
+    rt.wait_until(lambda: imu.sent > 3, 5, "IMU messages")
+    msg = rt.wait_for_messages("/imu", "sensor_msgs/msg/Imu", count=1)[0]
+    assert math.isclose(solution.tilt_deg(msg.orientation), 20.0, abs_tol=1e-6)
+
+
+def test_temperature_sensor_publishes_a_sine_between_20_and_30_celsius(rt):
+    rt.add(TemperatureSensor, rate_hz=50)
+    msgs = rt.wait_for_messages("/sensor/temperature", Float64, count=5)
+    assert all(20.0 <= m.data <= 30.0 for m in msgs)
+
+
+def test_bandwidth_grows_with_message_size(rt):
+    small, large = measure_bandwidth(rt, sizes=(100, 50_000), rate_hz=50, duration_s=0.8)
+    assert small.received_hz > 25 and large.received_hz > 25
+    assert large.bytes_per_s > 100 * small.bytes_per_s
+    assert math.isclose(large.bytes_per_s / large.received_hz, large.wire_bytes, rel_tol=0.01)
+
+
+# ---------------------------------------------------------------------- chapter 03 checkers
+class TiltAt25(solution.TiltMonitor):
+    def __init__(self):
+        super().__init__(threshold_deg=25.0)
+
+
+class TiltOnBoolTopic(solution.TiltMonitor):
+    """Publishes the warning as a Bool: the wrong type for the exercise."""
+
+    def __init__(self):
+        from std_msgs.msg import Bool
+
+        super().__init__()
+        self.destroy_publisher(self.warning_pub)
+        self.warning_pub = self.create_publisher(Bool, "/safety/tilt_warning", 10)
+
+
+def test_tilt_checker_accepts_the_reference(rt):
+    report = check_tilt_warning(solution.TiltMonitor, rt)
+    assert report.passed, report.summary()
+
+
+def test_tilt_checker_rejects_a_25_degree_threshold(rt):
+    report = check_tilt_warning(TiltAt25, rt)
+    assert not report.passed
+    failed = [c.name for c in report.criteria if not c.passed]
+    assert any("roll  20°" in name for name in failed), failed
+    assert not any("30°" in name and "roll  30°" in name for name in failed), failed
+
+
+def test_tilt_checker_rejects_the_wrong_message_type_quickly(rt):
+    start = time.monotonic()
+    report = check_tilt_warning(TiltOnBoolTopic, rt)
+    assert not report.passed
+    assert time.monotonic() - start < 6
+    assert any("std_msgs/msg/String" in c.name and not c.passed for c in report.criteria)
+
+
+class LoggerWithoutHeader(solution.CmdVelCsvLogger):
+    def __init__(self, csv_path):
+        super().__init__(csv_path)
+        self.file.seek(0)
+        self.file.truncate()
+
+
+class LoggerMissingAngularZ(solution.CmdVelCsvLogger):
+    def __init__(self, csv_path):
+        super().__init__(csv_path)
+        self.file.seek(0)
+        self.file.truncate()
+        self.writer = csv.writer(self.file)
+        self.writer.writerow(solution.CSV_COLUMNS[:-1])
+        self.file.flush()
+
+    def on_twist(self, msg):
+        self.writer.writerow([time.time(), msg.linear.x, msg.linear.y, msg.linear.z,
+                              msg.angular.x, msg.angular.y])
+        self.file.flush()
+
+
+class LoggerWithoutFlush(solution.CmdVelCsvLogger):
+    def on_twist(self, msg):
+        self.writer.writerow([time.time(), msg.linear.x, msg.linear.y, msg.linear.z,
+                              msg.angular.x, msg.angular.y, msg.angular.z])
+
+
+def test_csv_checker_accepts_the_reference(rt):
+    report = check_cmd_vel_logger(solution.CmdVelCsvLogger, rt)
+    assert report.passed, report.summary()
+
+
+@pytest.mark.parametrize("wrong, criterion", [
+    (LoggerWithoutHeader, "header row"),
+    (LoggerMissingAngularZ, "velocities in the right columns"),
+    (LoggerWithoutFlush, "rows are on disk"),
+])
+def test_csv_checker_rejects_wrong_loggers(rt, wrong, criterion):
+    report = check_cmd_vel_logger(wrong, rt)
+    assert not report.passed
+    failed = [c.name for c in report.criteria if not c.passed]
+    assert any(name.startswith(criterion) for name in failed), report.summary()
+
+
+def test_throughput_checker_accepts_the_reference(rt):
+    report = check_throughput(solution.expected_load, solution.measure_load, rt)
+    assert report.passed, report.summary()
+    assert not rt.children()
+
+
+def _load_without_size(n_sensors, rate_hz, message_bytes):
+    return n_sensors * rate_hz, n_sensors * rate_hz
+
+
+def _measure_one_topic(node, topics, duration_s=2.0):
+    return solution.measure_load(node, topics[:1], duration_s)
+
+
+def test_throughput_checker_rejects_wrong_computation_and_measurement(rt):
+    report = check_throughput(_load_without_size, _measure_one_topic, rt, duration_s=1.0)
+    assert not report.passed
+    failed = [c.name for c in report.criteria if not c.passed]
+    assert any(name.startswith("expected_load(10, 100, 324)") for name in failed), failed
+    assert any(name.startswith("measured messages/s matches") for name in failed), failed
+
+
+def test_throughput_checker_reports_exceptions_as_failures(rt):
+    def not_done(*_args):
+        raise NotImplementedError("TODO")
+
+    report = check_throughput(not_done, not_done, rt, duration_s=0.5)
+    assert not report.passed
+    assert "NotImplementedError" in report.summary()
+
+
+def test_checkers_refuse_to_run_beside_other_publishers(rt):
+    rt.add(ImuPublisher)
+    report = check_tilt_warning(solution.TiltMonitor, rt)
+    assert not report.passed
+    assert "also published by /imu_driver" in report.summary()
+    rt.remove("/imu_driver")
+    rt.add(CmdVelPublisher)
+    report = check_cmd_vel_logger(solution.CmdVelCsvLogger, rt)
+    assert not report.passed
+    assert "also published by /teleop" in report.summary()
