@@ -301,6 +301,7 @@ class CourseRuntime:
             if self.executor is not None:
                 self.executor.remove_node(node)
             node.destroy_node()
+            _destroy_actions_of(node)
 
         self._node_consoles.pop(id(node), None)
         self._router.close(node.get_logger().name)
@@ -476,6 +477,19 @@ class CourseRuntime:
         stamp = entry.stamp.sec + entry.stamp.nanosec * 1e-9
         line = _console.format_log_line(entry.level, entry.name, entry.msg, stamp)
         self._router.write_log(entry.name, line)
+
+
+def _destroy_actions_of(node: Node) -> None:
+    """Destroy the action servers and clients a node still holds after ``destroy_node()``.
+
+    rclpy's ``Node.destroy_node()`` leaves them alive, so the node would linger in the
+    graph; a node class that already destroyed its own has removed them from the list.
+    """
+    from rclpy.action import ActionClient, ActionServer
+
+    for waitable in list(node.waitables):
+        if isinstance(waitable, (ActionServer, ActionClient)):
+            waitable.destroy()
 
 
 # ---------------------------------------------------------------------- node creation hook

@@ -1,0 +1,60 @@
+"""Reference solution of chapter 06 (parameters); instructors' CI checks it with ``checks.params``."""
+
+from __future__ import annotations
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from std_msgs.msg import Float64, String
+
+
+class OverheatMonitor(Node):
+    """Exercise 06: classifies the latest temperature as ok / warning / critical, at a tunable rate."""
+
+    def __init__(self, **kwargs):
+        super().__init__('overheat_monitor', **kwargs)  # kwargs: parameter_overrides, cli_args, ...
+        self.declare_parameter('status_topic', 'overheat_status', ParameterDescriptor(
+            description='where the status strings go (fixed at start)', read_only=True))
+        self.declare_parameter('rate_hz', 5.0, ParameterDescriptor(
+            description='status publish rate [Hz]',
+            floating_point_range=[FloatingPointRange(from_value=1.0, to_value=20.0, step=0.0)]))
+        self.declare_parameter('warning_c', 60.0, ParameterDescriptor(description='warning threshold [°C]'))
+        self.declare_parameter('critical_c', 80.0, ParameterDescriptor(description='critical threshold [°C]'))
+        self.add_on_set_parameters_callback(self.validate)
+        self.add_post_set_parameters_callback(self.apply)
+
+        self.temperature = None  # latest reading [°C]
+        self.publisher = self.create_publisher(String, self.get_parameter('status_topic').value, 10)
+        self.subscription = self.create_subscription(Float64, 'temperature', self.on_temperature, 10)
+        self.timer = self.create_timer(1.0 / self.get_parameter('rate_hz').value, self.publish_status)
+
+    def validate(self, parameters) -> SetParametersResult:
+        """Reject a change that would put warning_c at or above critical_c."""
+        thresholds = {name: self.get_parameter(name).value for name in ('warning_c', 'critical_c')}
+        for parameter in parameters:
+            if parameter.name in thresholds:
+                thresholds[parameter.name] = parameter.value
+        if thresholds['warning_c'] >= thresholds['critical_c']:
+            return SetParametersResult(successful=False, reason=(
+                f"warning_c ({thresholds['warning_c']}) must be below critical_c "
+                f"({thresholds['critical_c']})"))
+        return SetParametersResult(successful=True)
+
+    def apply(self, parameters) -> None:
+        """After a successful change: retune the timer if rate_hz changed."""
+        for parameter in parameters:
+            if parameter.name == 'rate_hz':
+                self.timer.timer_period_ns = int(1e9 / parameter.value)  # period [ns]
+
+    def on_temperature(self, msg: Float64) -> None:
+        self.temperature = msg.data
+
+    def publish_status(self) -> None:
+        if self.temperature is None:
+            status = 'no data'
+        elif self.temperature >= self.get_parameter('critical_c').value:
+            status = 'critical'
+        elif self.temperature >= self.get_parameter('warning_c').value:
+            status = 'warning'
+        else:
+            status = 'ok'
+        self.publisher.publish(String(data=status))

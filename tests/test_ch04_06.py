@@ -1,0 +1,318 @@
+"""Chapters 04-06 (services, actions, parameters): helpers and checkers, with real nodes over Fast DDS."""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import pytest
+from course_interfaces.action import Navigate
+from course_interfaces.srv import AddTwoInts
+from rclpy.action import ActionClient, ActionServer, GoalResponse
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from course_helpers import CourseError
+from course_helpers.actions import FeedbackProgress, action_parts, status_name
+from course_helpers.checks.actions import check_navigation_server, destroy_actions
+from course_helpers.checks.params import check_overheat_monitor
+from course_helpers.checks.services import check_battery_server, check_relay_server
+from course_helpers.nodes import Listener, Talker
+from course_helpers.params import (
+    NodeLaunch,
+    RateTalker,
+    RateTuner,
+    launch,
+    load_parameter_file,
+    params_file_arguments,
+)
+from course_helpers.services import measure_round_trips, run_deadlock_demo
+from course_helpers.solutions.actions import NavigationServer
+from course_helpers.solutions.params import OverheatMonitor
+from course_helpers.solutions.services import BatteryMonitor, SumRelay
+
+
+# ---------------------------------------------------------------------- chapter 04: services
+class BlockingCaller(Node):
+    """Calls add_two_ints synchronously inside a timer callback (deadlocks on one thread)."""
+
+    def __init__(self, callback_group=None):
+        super().__init__("blocking_caller")
+        self.answer = None
+        self.client = self.create_client(AddTwoInts, "add_two_ints", callback_group=callback_group)
+        self.timer = self.create_timer(0.05, self.on_timer)
+
+    def on_timer(self):
+        if not self.client.service_is_ready():
+            return
+        self.timer.cancel()
+        self.answer = self.client.call(AddTwoInts.Request(a=20, b=22)).sum
+
+
+class GroupedCaller(BlockingCaller):
+    def __init__(self):
+        super().__init__(callback_group=MutuallyExclusiveCallbackGroup())
+
+
+class AsyncCaller(BlockingCaller):
+    def on_timer(self):
+        if not self.client.service_is_ready():
+            return
+        self.timer.cancel()
+        future = self.client.call_async(AddTwoInts.Request(a=20, b=22))
+        future.add_done_callback(lambda done: setattr(self, "answer", done.result().sum))
+
+
+def test_deadlock_demo_reports_the_deadlock_and_leaves_the_runtime_working(rt):
+    outcome = run_deadlock_demo(BlockingCaller, timeout_s=1.0)
+    assert outcome.deadlocked
+    assert str(outcome).startswith("deadlocked: the call did not return within 1 s")
+    assert run_deadlock_demo(BlockingCaller, executor="multi", timeout_s=1.0).deadlocked
+    # the kernel's own executor was never involved: it still delivers messages
+    rt.add(Talker, rate_hz=50)
+    listener = rt.add(Listener)
+    rt.wait_until(lambda: len(listener.heard) >= 3, 5, "messages after the deadlock demo")
+    assert [t.name for t in threading.enumerate()].count("isolated-executor") == 0
+
+
+@pytest.mark.parametrize("caller, executor", [(AsyncCaller, "single"), (GroupedCaller, "multi")])
+def test_fixed_callers_complete(rt, caller, executor):
+    outcome = run_deadlock_demo(caller, executor=executor)
+    assert outcome.completed and outcome.answer == 42, str(outcome)
+    assert str(outcome).startswith("completed:")
+
+
+def test_deadlock_demo_rejects_bad_arguments():
+    with pytest.raises(CourseError, match="executor must be"):
+        run_deadlock_demo(BlockingCaller, executor="threads")
+    with pytest.raises(CourseError, match="timeout_s"):
+        run_deadlock_demo(BlockingCaller, timeout_s=0)
+
+
+class SilentBattery(BatteryMonitor):
+    """Wrong: always claims the battery is fine, even without a reading."""
+
+    def on_status(self, request, response):
+        response.success = True
+        response.message = f"battery at {self.level}%"
+        return response
+
+
+def test_battery_checker_accepts_the_solution_and_rejects_a_wrong_one(rt):
+    assert check_battery_server(BatteryMonitor, rt).passed
+    report = check_battery_server(SilentBattery, rt)
+    assert not report.passed
+    failed = [c.name for c in report.criteria if not c.passed]
+    assert any("no reading" in name for name in failed)
+
+
+class BlockingRelay(Node):
+    """Wrong: relays with a blocking call() inside the service callback."""
+
+    def __init__(self):
+        super().__init__("sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints")
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request)
+
+    def on_request(self, request, response):
+        response.sum = self.backend.call(AddTwoInts.Request(a=request.a, b=request.b)).sum
+        return response
+
+
+class LocalAdder(Node):
+    """Wrong: adds locally instead of asking the backend."""
+
+    def __init__(self):
+        super().__init__("sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints")
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request)
+
+    def on_request(self, request, response):
+        response.sum = request.a + request.b
+        return response
+
+
+def test_relay_checker_accepts_the_solution_and_reports_deadlock_and_shortcut(rt):
+    assert check_relay_server(SumRelay, rt).passed
+    deadlocked = check_relay_server(BlockingRelay, rt)
+    assert not deadlocked.passed
+    assert any("deadlock" in c.detail for c in deadlocked.criteria if not c.passed)
+    shortcut = check_relay_server(LocalAdder, rt)
+    assert not shortcut.passed
+    assert any("backend" in c.name for c in shortcut.criteria if not c.passed)
+
+
+def test_round_trip_measurement_shows_publish_does_not_wait(rt):
+    trips = measure_round_trips(rt, samples=50)
+    assert set(trips.samples) == {"publish", "topic_round_trip", "service_round_trip"}
+    assert all(len(v) == 50 for v in trips.samples.values())
+    assert trips.median_us("publish") * 3 < trips.median_us("service_round_trip")
+    assert "latency_echo" not in rt.children()
+    with pytest.raises(CourseError):
+        trips.median_us("carrier_pigeon")
+
+
+# ---------------------------------------------------------------------- chapter 05: actions
+class NoCancelNavigation(NavigationServer):
+    """Wrong: no cancel callback, so rclpy rejects every cancel request."""
+
+    def __init__(self):
+        Node.__init__(self, "navigation_server")
+        self.server = ActionServer(self, Navigate, "navigate", self.execute, goal_callback=self.on_goal)
+
+
+class AnySpeedNavigation(NavigationServer):
+    """Wrong: accepts every speed."""
+
+    def on_goal(self, goal):
+        return GoalResponse.ACCEPT
+
+
+def test_navigation_checker_accepts_the_solution_and_rejects_wrong_ones(rt):
+    assert check_navigation_server(NavigationServer, rt).passed
+    no_cancel = check_navigation_server(NoCancelNavigation, rt)
+    assert not no_cancel.passed
+    assert "it accepts the cancel request" in [c.name for c in no_cancel.criteria if not c.passed]
+    any_speed = check_navigation_server(AnySpeedNavigation, rt)
+    assert "it rejects a goal with speed 0 m/s" in [c.name for c in any_speed.criteria if not c.passed]
+
+
+def test_progress_bar_follows_real_feedback_and_action_parts_are_listed(rt):
+    server = rt.add(NavigationServer)
+    probe = rt.node("progress_probe")
+    client = ActionClient(probe, Navigate, "/navigate")
+    try:
+        assert client.wait_for_server(3.0)
+        parts = action_parts("/navigate", rt)
+        assert [(p.kind, p.name.rsplit("/", 1)[-1]) for p in parts] == [
+            ("service", "cancel_goal"), ("service", "get_result"), ("service", "send_goal"),
+            ("topic", "feedback"), ("topic", "status")]
+        progress = FeedbackProgress(1.0, value_of=lambda feedback: feedback.progress)
+        goal = Navigate.Goal(speed=1.5)
+        goal.target.x = 0.6
+        handle = rt.wait_for_future(client.send_goal_async(goal, feedback_callback=progress.on_feedback))
+        progress.follow(handle)
+        outcome = rt.wait_for_future(handle.get_result_async(), 3.0)
+        assert status_name(outcome.status) == "SUCCEEDED"
+        rt.wait_until(lambda: progress.status == "SUCCEEDED", 2.0, "the bar to see the end")
+        assert progress.monotonic and len(progress.values) >= 3
+        assert math.isclose(progress.values[-1], 1.0, abs_tol=0.01)
+        assert progress.bar.bar_style == "success"
+    finally:
+        rt.call_in_executor(destroy_actions, probe)
+        rt.remove(server)
+        assert not [w for w in server.waitables if isinstance(w, ActionServer)], "destroy_node cleaned up"
+    with pytest.raises(CourseError, match="no action"):
+        action_parts("/no_such_action", rt)
+
+
+# ---------------------------------------------------------------------- chapter 06: parameters
+def test_validation_callback_rejects_bad_thresholds_with_its_reason(rt):
+    node = rt.add(OverheatMonitor)
+    result = node.set_parameters([Parameter("warning_c", value=90.0)])[0]
+    assert not result.successful
+    assert result.reason == "warning_c (90.0) must be below critical_c (80.0)"
+    result = node.set_parameters([Parameter("rate_hz", value=0.2)])[0]
+    assert not result.successful and "out of range" in result.reason
+    assert node.set_parameters([Parameter("warning_c", value=50.0)])[0].successful
+    assert node.get_parameter("warning_c").value == 50.0
+
+
+class UncheckedMonitor(OverheatMonitor):
+    """Wrong: accepts every threshold change."""
+
+    def validate(self, parameters):
+        from rcl_interfaces.msg import SetParametersResult
+
+        return SetParametersResult(successful=True)
+
+
+def test_overheat_checker_accepts_the_solution_and_rejects_a_wrong_one(rt):
+    report = check_overheat_monitor(OverheatMonitor, rt)
+    assert report.passed, report.summary()
+    wrong = check_overheat_monitor(UncheckedMonitor, rt)
+    assert not wrong.passed
+    assert any("warning_c = 90" in c.name for c in wrong.criteria if not c.passed)
+
+
+PARAMS_YAML = """
+/**:
+  ros__parameters:
+    message: from the wildcard
+    limits:
+      max_speed: 1.5
+talker:
+  ros__parameters:
+    rate_hz: 7.5
+robot2:
+  talker:
+    ros__parameters:
+      rate_hz: 3.0
+      message: robot two
+"""
+
+
+def test_yaml_parameter_file_sets_the_values(rt, tmp_path):
+    path = tmp_path / "params.yaml"
+    path.write_text(PARAMS_YAML)
+    root = {p.name: p.value for p in load_parameter_file(str(path), "talker")}
+    assert root == {"message": "from the wildcard", "limits.max_speed": 1.5, "rate_hz": 7.5}
+    robot2 = {p.name: p.value for p in load_parameter_file(str(path), "talker", "/robot2")}
+    assert robot2["rate_hz"] == 3.0 and robot2["message"] == "robot two"
+
+    node = rt.add(RateTalker, "talker", parameter_overrides=load_parameter_file(str(path), "talker"))
+    assert node.get_parameter("rate_hz").value == 7.5
+    assert node.get_parameter("message").value == "from the wildcard"
+    node = rt.add(RateTalker, "talker", namespace="/robot2", cli_args=params_file_arguments(str(path)))
+    assert node.get_parameter("rate_hz").value == 3.0
+    assert node.get_parameter("message").value == "robot two"
+
+
+@pytest.mark.parametrize("text, complaint", [
+    ("talker:\n  rate_hz: 2.0\n", "must be a node name"),
+    ("talker:\n  ros__parameters:\n    gains: [1, 2.5]\n", "mixes types"),
+    ("talker:\n  ros__parameters:\n    gains: []\n", "empty list"),
+    ("- just a list\n", "must map node names"),
+])
+def test_bad_parameter_files_raise_course_errors(tmp_path, text, complaint):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(CourseError, match=complaint):
+        load_parameter_file(str(path), "talker")
+    with pytest.raises(CourseError, match="not found"):
+        load_parameter_file(str(tmp_path / "missing.yaml"), "talker")
+
+
+def test_rate_tuner_retunes_a_running_node(rt):
+    rt.add(RateTalker, "talker", parameter_overrides=[Parameter("rate_hz", value=4.0)])
+    tuner = RateTuner("/talker", "chatter", rt=rt)
+    assert tuner.get_rate() == 4.0
+    assert tuner.set_rate(12.0).successful
+    measured = tuner.measure(1.0)
+    assert 8.0 < measured < 16.0, measured
+    refused = tuner.set_rate(500.0)
+    assert not refused.successful and "out of range" in refused.reason
+    assert tuner.get_rate() == 12.0
+
+
+def test_launch_starts_configured_nodes_and_stops_them_together(rt, tmp_path):
+    path = tmp_path / "robots.yaml"
+    path.write_text("/**:\n  ros__parameters:\n    message: launched\n")
+    group = launch([
+        NodeLaunch("talker", "talker", namespace="/r1", params_file=str(path),
+                   parameters={"rate_hz": 20.0}),
+        NodeLaunch("listener", "listener", namespace="/r1", parameters={"log_every": 2}),
+    ], label="testlaunch", rt=rt)
+    try:
+        assert group.alive and group.node_names == ["/r1/listener", "/r1/talker"]
+        heard = rt.wait_for_messages("/r1/chatter", "std_msgs/msg/String", count=2, timeout=5.0)
+        assert heard[0].data.startswith("launched ")
+    finally:
+        codes = group.stop()
+    assert set(codes) == {"/r1/listener", "/r1/talker"}
+    assert not group.alive
+    rt.wait_until(lambda: not {"/r1/listener", "/r1/talker"} & set(rt.graph_nodes()), 10,
+                  "the launched nodes to leave the graph")
+    with pytest.raises(CourseError, match="share a name"):
+        launch([NodeLaunch("talker", "a"), NodeLaunch("listener", "a")], rt=rt)
