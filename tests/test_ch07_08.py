@@ -1,0 +1,231 @@
+"""Chapters 07 (DDS and discovery) and 08a (Quality of Service): helpers, demos and checkers.
+
+Real nodes over real Fast DDS, in the kernel's runtime and in child processes. Timing bounds are
+loose: the machine has 2 shared cores and discovery occasionally waits one announcement period.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import pytest
+from rclpy.node import Node
+from rclpy.qos import (
+    QoSDurabilityPolicy,
+    QoSLivelinessPolicy,
+    QoSProfile,
+    QoSReliabilityPolicy,
+    qos_check_compatible,
+    qos_profile_sensor_data,
+)
+from std_msgs.msg import String
+
+from course_helpers import CourseError, dds, qos
+from course_helpers.checks.dds import check_domain_plan
+from course_helpers.checks.qos import check_channel_qos, check_mismatched_subscriber
+from course_helpers.solutions import dds as dds_solution
+from course_helpers.solutions import qos as qos_solution
+
+
+# ---------------------------------------------------------------------- chapter 07
+def test_communication_models_route_and_count():
+    rows = {r.model: r for r in dds.compare_models((8,), interested=2)}
+    assert rows["broker"].busiest_load == 8 * 3  # 8 messages in, 16 copies out
+    assert rows["broadcast"].irrelevant == 8 * 5  # each message reaches 7 nodes, 2 wanted it
+    assert rows["dds_databus"].irrelevant == 0 and rows["dds_databus"].addresses_to_configure == 0
+    assert all(r.delivered == r.wanted for r in rows.values())
+    failure = {r["model"]: r["share"] for r in dds.center_failure_table(10)}
+    assert failure["broker"] == 0.0 and failure["dds_databus"] == pytest.approx(0.8)
+    with pytest.raises(CourseError):
+        dds.simulate_model("carrier_pigeon", 4)
+
+
+def test_domains_isolate_and_a_probe_sees_the_other_domain(rt):
+    spare = dds.reserve_spare_domain()
+    assert spare != rt.domain.domain_id and dds.reserve_spare_domain() == spare
+    rt.spawn("far", "course_helpers.nodes:make_talker", params={"name": "far_talker"},
+             env={"ROS_DOMAIN_ID": str(spare)})
+    rt.spawn("near", "course_helpers.nodes:make_talker", params={"name": "near_talker"},
+             wait_for="/near_talker")
+    assert dds.nodes_in_domain(spare, wait_s=8, expect=["/far_talker"]) == ["/far_talker"]
+    time.sleep(0.5)
+    assert "/far_talker" not in rt.graph_nodes()
+
+
+def test_discovery_is_measured_and_range_off_finds_nothing(rt):
+    timings = dds.measure_discovery(rt, repeats=1)
+    assert timings[0].found and 0 < timings[0].reader_matched_s < 8
+    off = dds.measure_discovery(rt, repeats=1, env={"ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}, timeout_s=1.5)
+    assert not off[0].found and off[0].reader_matched_s is None
+    assert "/discovery_anchor" not in rt.nodes()
+
+
+def test_discovery_server_connects_clients_only_through_it_and_is_reaped(rt):
+    port = dds.free_udp_port()
+    env = {"ROS_DISCOVERY_SERVER": f"127.0.0.1:{port}"}
+    rt.spawn("ds_talker", "course_helpers.nodes:make_talker", params={"name": "ds_talker", "rate_hz": 10.0},
+             env=env)
+    listener = rt.spawn("ds_listener", "course_helpers.dds:make_printing_listener",
+                        params={"name": "ds_listener"}, env=env)
+    time.sleep(2.0)
+    assert dds.heard_lines(listener) == []  # no server yet: clients cannot find each other
+    server = dds.start_discovery_server(port=port)
+    rt.wait_until(lambda: dds.heard_lines(listener), 10, "the listener to hear through the server")
+    assert "/ds_talker" not in rt.graph_nodes()  # the kernel uses simple discovery, not the server
+    pid = server.pid
+    assert dds.start_discovery_server(port=port).pid != pid  # re-run: the old one is stopped first
+    assert not server.alive and server.process.returncode is not None
+    dds.stop_discovery_servers()
+    assert dds._servers == {}
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)
+
+
+def test_dds_names_show_the_mangling(rt):
+    node = rt.node("mangle_demo")
+    node.create_publisher(String, "chatter", 10)
+    from std_srvs.srv import Trigger
+
+    node.create_service(Trigger, "reset", lambda _req, res: res)
+    rt.wait_until(lambda: any(e.dds_topic == "rq/resetRequest" for e in dds.dds_entities(rt)), 5,
+                  "the service")
+    rows = {e.dds_topic: e for e in dds.dds_entities(rt)}
+    assert rows["rt/chatter"].dds_type == "std_msgs::msg::dds_::String_"
+    assert rows["rt/chatter"].ros_name == "/chatter" and rows["rt/chatter"].ros_type == "std_msgs/msg/String"
+    assert rows["rr/resetReply"].ros_name == "/reset"
+    assert rows["rr/resetReply"].ros_type == "std_srvs/srv/Trigger"
+    info = rt.graph.get_publishers_info_by_topic("rt/chatter", no_mangle=True)
+    assert [i.node_name for i in info] == ["mangle_demo"]
+    assert dds.guid_process_id(info[0].endpoint_gid) == os.getpid() & 0xFFFF
+    assert dds.guid_vendor(info[0].endpoint_gid) == "eProsima Fast DDS"
+
+
+def test_security_is_not_built_in(rt):
+    result = dds.try_secure_node(rt)
+    assert result["created"] is False and "security" in result["error"]
+
+
+def test_transports_are_measured_in_child_processes(rt):
+    result = dds.measure_transports(rt, sizes=(1000, 200_000), round_trips=3,
+                                    transports=("intra-process", "shared memory"))
+    for transport in ("intra-process", "shared memory"):
+        assert all(len(result.round_trips[transport][s]) == 3 for s in (1000, 200_000))
+        assert 0 < result.one_way_ms(transport, 1000) < 200
+
+
+def test_domain_plan_checker_accepts_the_solution_and_rejects_no_isolation(rt):
+    assert check_domain_plan(dds_solution.plan, rt).passed
+    roles = ("talker", "listener", "monitor", "loner")
+    wrong = check_domain_plan(lambda kernel, spare: {r: {} for r in roles}, rt)
+    assert not wrong.passed
+    failed = [c.name for c in wrong.criteria if not c.passed]
+    assert "your notebook cannot see the team" in failed and "nobody in your domain sees the loner" in failed
+    bad_domain = check_domain_plan(lambda k, s: {r: {"ROS_DOMAIN_ID": "0"} for r in roles}, rt)
+    assert not bad_domain.passed and len(bad_domain.criteria) == 1
+
+
+# ---------------------------------------------------------------------- chapter 08a
+COMBOS = [
+    ({"reliability": "best_effort"}, {"reliability": "reliable"}),
+    ({"reliability": "reliable"}, {"reliability": "best_effort"}),
+    ({"durability": "volatile"}, {"durability": "transient_local"}),
+    ({"deadline_s": 1.0}, {"deadline_s": 0.5}),
+    ({"deadline_s": 0.5}, {"deadline_s": 1.0}),
+    ({"liveliness": "automatic"}, {"liveliness": "manual_by_topic"}),
+    ({"lease_s": 2.0}, {"lease_s": 1.0}),
+    ({"history": "keep_all"}, {"depth": 1}),
+]
+
+
+@pytest.mark.parametrize("pub, sub", COMBOS)
+def test_compatibility_rules_agree_with_rclpy(pub, sub):
+    pub_qos, sub_qos = qos.qos_from_dict(pub), qos.qos_from_dict(sub)
+    verdict, _reason = qos_check_compatible(pub_qos, sub_qos)
+    assert qos.compatible(pub_qos, sub_qos) == (verdict.name != "ERROR")
+
+
+@pytest.mark.parametrize("pub, sub", [COMBOS[0], COMBOS[1], COMBOS[2], COMBOS[5]])
+def test_compatibility_agrees_with_a_live_pair(rt, pub, sub):
+    pub_qos, sub_qos = qos.qos_from_dict(pub), qos.qos_from_dict(sub)
+    pair = qos.try_pair(rt, pub_qos, sub_qos)
+    assert pair.connected == qos.compatible(pub_qos, sub_qos)
+    if not pair.connected:
+        assert pair.subscription_events and pair.publisher_events
+
+
+def test_qos_dicts_round_trip_and_reject_bad_values():
+    profile = qos.qos_from_dict({"reliability": "best_effort", "depth": 3, "deadline_s": 0.2, "lease_s": 1.0,
+                                 "liveliness": "manual_by_topic", "durability": "transient_local"})
+    assert profile.liveliness == QoSLivelinessPolicy.MANUAL_BY_TOPIC
+    assert qos.qos_to_dict(profile)["deadline_s"] == pytest.approx(0.2)
+    assert qos.qos_from_dict(qos.qos_to_dict(profile)) == profile
+    assert qos.qos_to_dict(qos_profile_sensor_data)["reliability"] == "best_effort"
+    for bad in ({"reliability": "maybe"}, {"depth": 0}, {"deadline_s": -1}, {"colour": "red"}):
+        with pytest.raises(CourseError):
+            qos.qos_from_dict(bad)
+
+
+def test_durability_late_joiner(rt):
+    got = qos.demo_durability(rt, published=5, publisher_depth=3)
+    assert got["transient_local"] == [2, 3, 4]
+    assert got["volatile"] == []
+
+
+def test_history_depth_keeps_the_newest(rt):
+    got = qos.demo_history(rt, burst=12, depths=(1, 4))
+    assert got["KEEP_LAST(1)"] == [11] and got["KEEP_LAST(4)"] == [8, 9, 10, 11]
+    assert got["KEEP_ALL"] == list(range(12))
+    assert rt.nodes() == []
+
+
+def test_deadline_events_fire_while_the_publisher_pauses(rt):
+    result = qos.demo_deadline(rt, period_s=0.1, deadline_s=0.25, pause=(0.5, 1.3), duration_s=1.6)
+    assert result.missed_during_pause("requested") >= 2 and result.missed_during_pause("offered") >= 2
+    assert result.missed_outside_pause("requested") == 0
+    assert any(t > 1.3 for t in result.arrivals)  # it resumed
+
+
+def test_liveliness_lost_when_a_child_publisher_is_killed(rt):
+    result = qos.demo_liveliness_kill(rt, lease_s=1.0, watch_s=2.0)
+    delay = result.first_not_alive_after_cut("automatic")
+    assert delay is not None and 0.5 < delay < 2.0
+    assert rt.children() == {}
+
+
+def test_profiles_table_lists_the_predefined_profiles():
+    rows = {r["profile"]: r for r in qos.profiles_table()}
+    assert rows["qos_profile_sensor_data"]["reliability"] == "BEST_EFFORT"
+    assert rows["qos_profile_action_status_default"]["durability"] == "TRANSIENT_LOCAL"
+    assert rows["qos_profile_parameters"]["history"] == "KEEP_LAST(1000)"
+
+
+def test_channel_checker_accepts_the_solution_and_rejects_defaults(rt):
+    assert check_channel_qos(qos_solution.channel_qos(), rt).passed
+    defaults = {c: QoSProfile(depth=10) for c in ("camera", "lidar", "joint_states", "estop")}
+    wrong = check_channel_qos(defaults, rt)
+    failed = [c.name for c in wrong.criteria if not c.passed]
+    assert not wrong.passed
+    assert any(name.startswith("camera: BEST_EFFORT") for name in failed)
+    assert "estop: a controller that starts after the button was pressed still gets it" in failed
+    assert not check_channel_qos({"camera": None}, rt).passed
+
+
+class _StarterListener(Node):
+    def __init__(self):
+        super().__init__("robot_listener")
+        self.received = []
+        wanted = QoSProfile(depth=10, reliability=QoSReliabilityPolicy.RELIABLE,
+                            durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+        self.subscription = self.create_subscription(String, "/robot_cmd", self.on_cmd, wanted)
+
+    def on_cmd(self, msg):
+        self.received.append(msg.data)
+
+
+def test_mismatched_subscriber_checker(rt):
+    assert check_mismatched_subscriber(qos_solution.RobotCmdListener, rt).passed
+    wrong = check_mismatched_subscriber(_StarterListener, rt)
+    assert not wrong.passed
+    assert "reliability" in wrong.criteria[1].detail and "durability" in wrong.criteria[1].detail
+    assert rt.nodes() == [] and rt.children() == {}
