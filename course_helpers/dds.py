@@ -24,7 +24,6 @@ Child-process targets (``make_printing_listener``, ``discovery_probe``, ``make_p
 from __future__ import annotations
 
 import atexit
-import fcntl
 import json
 import os
 import socket
@@ -35,7 +34,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 
-from .domains import FIRST_DOMAIN, LAST_DOMAIN, LOCK_DIR
+from .domains import reserve_domain
 from .errors import CourseError, WaitTimeout
 
 RESULT_TAG = "DDS_RESULT "  # child targets print one line 'DDS_RESULT {json}'
@@ -176,7 +175,7 @@ def plot_models(results: list[ModelResult]):
 
 
 # ====================================================================== domains
-_spare_domains: dict[int, int] = {}  # domain -> lock file descriptor
+_spare_domains: list[int] = []  # the spare domain, once reserved
 
 
 def reserve_spare_domain() -> int:
@@ -185,27 +184,10 @@ def reserve_spare_domain() -> int:
     Re-running returns the same domain. The reservation is a lock file the operating system
     releases when the kernel exits.
     """
-    if _spare_domains:
-        return next(iter(_spare_domains))
-    own = int(os.environ.get("ROS_DOMAIN_ID", "-1") or -1)
-    os.makedirs(LOCK_DIR, exist_ok=True)
-    span = LAST_DOMAIN - FIRST_DOMAIN + 1
-    start = (os.getpid() * 7) % span
-    for offset in range(span):
-        domain = FIRST_DOMAIN + (start + offset) % span
-        if domain == own:
-            continue
-        fd = os.open(os.path.join(LOCK_DIR, f"domain-{domain}.lock"), os.O_RDWR | os.O_CREAT)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
-            continue
-        os.ftruncate(fd, 0)
-        os.write(fd, str(os.getpid()).encode())
-        _spare_domains[domain] = fd
-        return domain
-    raise CourseError("no free ROS domain left for a second domain; shut down other course kernels")
+    if not _spare_domains:
+        own = int(os.environ.get("ROS_DOMAIN_ID", "-1") or -1)
+        _spare_domains.append(reserve_domain(exclude=(own,)))
+    return _spare_domains[0]
 
 
 def nodes_in_domain(domain_id: int, wait_s: float = 1.5, expect: list[str] | tuple = ()) -> list[str]:

@@ -31,6 +31,7 @@ class DomainChoice:
 
 
 _held: dict[int, int] = {}  # domain -> lock file descriptor, held for the life of the process
+_kernel_domain: list[int] = []  # the domain choose_domain() reserved for this process
 
 
 def choose_domain() -> DomainChoice:
@@ -40,13 +41,13 @@ def choose_domain() -> DomainChoice:
     child-process nodes inherit them.
     """
     user_value = os.environ.get("ROS_DOMAIN_ID")
-    if user_value is not None and int(user_value or 0) not in _held:
+    if user_value is not None and not (_kernel_domain and user_value == str(_kernel_domain[0])):
         domain = parse_domain_id(user_value)
         source = "user"
     else:
-        domain = next(iter(_held), None)
-        if domain is None:
-            domain = _reserve_free_domain()
+        if not _kernel_domain:
+            _kernel_domain.append(reserve_domain())
+        domain = _kernel_domain[0]
         source = "automatic"
     os.environ["ROS_DOMAIN_ID"] = str(domain)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -67,12 +68,18 @@ def parse_domain_id(value) -> int:
     return domain
 
 
-def _reserve_free_domain() -> int:
+def reserve_domain(exclude: tuple[int, ...] = ()) -> int:
+    """Reserve a domain no other course process holds (and not in ``exclude``) until this one exits.
+
+    The kernel's own domain comes from here; chapter 07 reserves a second one to show isolation.
+    """
     os.makedirs(LOCK_DIR, exist_ok=True)
     span = LAST_DOMAIN - FIRST_DOMAIN + 1
     start = os.getpid() % span
     for offset in range(span):
         domain = FIRST_DOMAIN + (start + offset) % span
+        if domain in _held or domain in exclude:
+            continue
         fd = os.open(os.path.join(LOCK_DIR, f"domain-{domain}.lock"), os.O_RDWR | os.O_CREAT)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
