@@ -1,0 +1,219 @@
+"""The QoS lab engine (chapter 08) over the real transport: no mocks, nothing simulated.
+
+Every run starts a publisher in a child process and a subscriber in this process's
+runtime, so the samples cross Fast DDS shared memory or UDP.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+
+import pytest
+
+from course_helpers import CourseError
+from course_helpers.experiments import (
+    CHILD_LABEL,
+    MAX_PAYLOAD_BYTES,
+    ExperimentConfig,
+    preset,
+    run_experiment,
+)
+
+
+# ---------------------------------------------------------------------- configuration
+@pytest.mark.parametrize("changes, words", [
+    ({"history": "keep_all", "depth": 10}, "depth=None"),
+    ({"rate_hz": 0}, "rate_hz"),
+    ({"rate_hz": -5.0}, "rate_hz"),
+    ({"rate_hz": float("nan")}, "rate_hz"),
+    ({"payload_bytes": MAX_PAYLOAD_BYTES + 1}, "4 MiB"),
+    ({"payload_bytes": 1.5}, "payload_bytes"),
+    ({"duration_s": 0}, "duration_s"),
+    ({"duration_s": 60}, "duration_s"),
+    ({"rate_hz": 5000, "duration_s": 10}, "at most"),
+    ({"depth": 0}, "depth"),
+    ({"depth": True}, "depth"),
+    ({"reliability": "sometimes"}, "'reliable', 'best_effort'"),
+    ({"transport": "tcp"}, "'shm', 'udp'"),
+    ({"processing_ms": 1000}, "processing_ms"),
+    ({"history": "keep_all", "depth": None, "payload_bytes": 2**20, "rate_hz": 1000, "duration_s": 1},
+     "KEEP_ALL"),
+])
+def test_config_rejects_what_is_not_allowed(changes, words):
+    with pytest.raises(CourseError) as info:
+        ExperimentConfig(**changes)
+    assert words in str(info.value)
+
+
+def test_config_accepts_keep_all_without_depth_and_counts_samples():
+    config = ExperimentConfig(history="keep_all", depth=None, rate_hz=400, duration_s=0.75)
+    assert config.count == 300
+    assert "keep_all" in config.describe()
+    with pytest.raises(CourseError):
+        run_experiment({"rate_hz": 10})
+
+
+# ---------------------------------------------------------------------- measurements
+def test_best_effort_loses_under_load_and_reliable_delivers_at_least_as_many(rt):
+    best_effort_cfg, reliable_cfg = preset("best-effort vs reliable under load")
+    errors_before = len(rt.errors)
+    best_effort = run_experiment(best_effort_cfg)
+    reliable = run_experiment(reliable_cfg)
+    print(best_effort.summary(), reliable.summary(), sep="\n")
+    assert reliable.delivered >= best_effort.delivered
+    assert best_effort.lost_by_sequence > 0  # counted from gaps in publication_sequence_number
+    for result in (best_effort, reliable):
+        assert result.published == result.planned == 300
+        # Every sample is either delivered or one of the gaps (the tail included).
+        assert result.delivered + result.lost_by_sequence == result.published
+        assert isinstance(result.lost_events, int)
+        assert 0 <= result.lost_events <= result.lost_by_sequence  # DDS reports only real losses
+        assert result.publish_errors == 0 and not result.stopped and result.in_flight == 0
+        assert result.timeline[-1].done and result.timeline[-1].delivered == result.delivered
+        assert result.latency_ms["p50"] is not None and result.latency_ms["p50"] <= result.latency_ms["p99"]
+    assert len(rt.errors) == errors_before  # no subscriber callback failed
+    assert not rt.children()  # the publisher's process is gone
+
+
+def test_keep_all_back_pressure_is_counted_not_raised(rt):
+    (config,) = preset("KEEP_ALL back-pressure")
+    result = run_experiment(config)
+    print(result.summary(), result.first_error)
+    assert result.publish_errors > 0
+    assert "publish" in result.first_error.lower()
+    assert result.lost_by_sequence == 0 and result.lost_events == 0  # KEEP_ALL reliable drops nothing
+    assert result.published > 0 and result.delivered > 0
+    assert result.delivered + result.in_flight == result.published
+
+
+def test_late_joiner_volatile_gets_nothing_transient_local_gets_the_kept_samples(rt):
+    volatile_cfg, transient_cfg = preset("late joiner: volatile vs transient_local")
+    volatile = run_experiment(volatile_cfg)
+    transient = run_experiment(transient_cfg)
+    print(volatile.summary(), transient.summary(), sep="\n")
+    assert volatile.published == transient.published == 20
+    assert volatile.delivered == 0
+    assert transient.delivered == transient_cfg.depth == 10  # the writer kept the last 10
+    assert transient.first_seq == transient.published - transient_cfg.depth + 1
+
+
+def test_slow_subscriber_depth_100_keeps_more_than_depth_1(rt):
+    shallow_cfg, deep_cfg = preset("depth 1 vs 100, slow subscriber")
+    shallow = run_experiment(shallow_cfg)
+    deep = run_experiment(deep_cfg)
+    print(shallow.summary(), deep.summary(), sep="\n")
+    assert shallow.lost_by_sequence > 0
+    assert deep.delivered > shallow.delivered
+
+
+def test_udp_transport_sends_the_samples_through_loopback(rt):
+    config = ExperimentConfig(reliability="reliable", depth=100, rate_hz=100, payload_bytes=256 * 1024,
+                              duration_s=0.5, transport="udp")
+    result = run_experiment(config)
+    print(result.summary(), f"loopback {result.loopback_bytes / 1e6:.1f} MB")
+    assert result.delivered > 0
+    # Every delivered sample crossed the loopback interface at least once (other traffic only adds).
+    assert result.loopback_bytes >= result.delivered * config.payload_bytes
+
+
+def test_stop_event_ends_the_run_and_the_child_within_a_second(rt):
+    config = ExperimentConfig(reliability="reliable", rate_hz=200, payload_bytes=1024, duration_s=15.0)
+    stop = threading.Event()
+    snapshots = []
+    outcome = {}
+    thread = threading.Thread(target=lambda: outcome.update(
+        result=run_experiment(config, progress=snapshots.append, stop_event=stop)))
+    thread.start()
+    rt.wait_until(lambda: snapshots and snapshots[-1].delivered > 50, timeout=20, what="samples flowing")
+    child = rt.children()[CHILD_LABEL]
+    stopped_at = time.monotonic()
+    stop.set()
+    while child.alive and time.monotonic() - stopped_at < 3:
+        time.sleep(0.005)
+    child_gone_s = time.monotonic() - stopped_at
+    thread.join(5)
+    print(f"child ended {child_gone_s * 1000:.0f} ms after stop; run returned "
+          f"{(time.monotonic() - stopped_at) * 1000:.0f} ms after stop")
+    assert child_gone_s < 1.0
+    assert not thread.is_alive()
+    result = outcome["result"]
+    assert result.stopped and 0 < result.delivered < config.count
+    with pytest.raises(ProcessLookupError):
+        os.kill(child.pid, 0)
+    assert not rt.children()
+
+
+# ---------------------------------------------------------------------- the widget panel
+def test_panel_prevents_or_explains_bad_combinations():
+    from course_helpers.qos_lab import qos_lab
+
+    lab = qos_lab()
+    try:
+        lab.history.value = "keep_all"
+        assert lab.depth.disabled and lab.config().depth is None  # no depth with KEEP_ALL
+        lab.history.value = "keep_last"
+        assert not lab.depth.disabled
+        assert lab.rate.options[0][1] >= 1 and lab.payload.options[-1][1] <= MAX_PAYLOAD_BYTES  # bounded
+        lab.rate.value, lab.duration.value = 5000, 10.0  # 50000 samples: more than a run allows
+        assert lab.run_button.disabled and "cannot run" in lab.status.value and "at most" in lab.status.value
+        lab.duration.value = 1.0
+        assert not lab.run_button.disabled
+        lab._load_preset("best-effort vs reliable under load")
+        assert lab.config_b is not None and lab.config().reliability == "reliable"
+        assert not lab.compare_button.disabled
+    finally:
+        lab.close()
+
+
+def test_panel_plots_live_and_a_rerun_of_the_cell_leaves_nothing_running(rt):
+    from course_helpers.qos_lab import qos_lab
+
+    lab = qos_lab()
+    first_frame = lab.image.value
+    config = ExperimentConfig(reliability="best_effort", rate_hz=2000, payload_bytes=1024, duration_s=2.0)
+    lab.start([config])
+    assert lab.wait(60)
+    (result,) = lab.results
+    rate = result.delivered / result.send_time_s
+    print(f"live plot: {lab.frame_hz:.1f} frames/s while receiving {rate:.0f} samples/s")
+    assert lab.image.value != first_frame
+    assert "qos-lab-results" in lab.table.value and "<td" in lab.table.value
+    assert rate >= 1000
+    assert lab.frame_hz >= 5.0
+    # Start a long run, then "run the cell again": the old panel stops its experiment and child.
+    lab.start([config.with_changes(rate_hz=100, duration_s=15.0)])
+    rt.wait_until(lambda: CHILD_LABEL in rt.children(), timeout=20, what="the publisher child")
+    child = rt.children()[CHILD_LABEL]
+    new_lab = qos_lab()
+    try:
+        assert not lab.running and not child.alive
+        assert not rt.children()
+        assert not [t for t in threading.enumerate() if t.name == "qos-lab"]
+        assert lab.results[-1].stopped
+    finally:
+        new_lab.close()
+
+
+def test_plots_show_the_numbers_of_finished_runs():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from course_helpers.experiments import Snapshot
+    from course_helpers.lab_plots import ResultsFigure, draw_results
+
+    snaps = [Snapshot(t=0.1 * i, delivered=9 * i, lost_by_sequence=i, lost_events=i // 2, published=10 * i,
+                      publish_errors=0, latency_p50_ms=1.0, latency_p90_ms=2.0, latency_p99_ms=3.0)
+             for i in range(1, 6)]
+    figure = ResultsFigure()
+    live = figure.frame([("live run", snaps[:2])])
+    assert live.startswith(b"\x89PNG")
+    assert figure.frame([("live run", snaps)]) != live  # the picture follows the data
+    done = [*snaps[:-1], Snapshot(**{**snaps[-1].__dict__, "done": True})]
+    figure.frame([("live run", done)])
+    texts = {artist.get_text() for artist in figure._dynamic if hasattr(artist, "get_text")}
+    assert {"50", "45", "5", "2"} <= texts  # sent, delivered, lost by gaps, lost by events
+    assert "nothing lost" not in texts
+    still = draw_results([("a run", done)], title="test")
+    assert len(still.axes) == 3
