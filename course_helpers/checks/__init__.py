@@ -12,6 +12,7 @@ accepts a correct solution and rejects a wrong one.
 from __future__ import annotations
 
 import html
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -88,3 +89,17 @@ def _describe(exc: BaseException) -> str:
     """``ValueError: message``: the error's class and message, without notes or module path."""
     message = str(exc).strip()
     return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
+
+
+def poll_until(predicate: Callable[[], object], timeout_s: float, period_s: float = 0.01) -> bool:
+    """Check ``predicate`` until it is true or ``timeout_s`` passes; True if it came true.
+
+    Checkers use this (not ``rt.wait_until``) when a timeout is an expected outcome to
+    report as a failed criterion rather than an exception.
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(period_s)
+    return bool(predicate())

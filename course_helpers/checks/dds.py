@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 
-from . import CheckReport
+from . import CheckReport, poll_until
 
 ROLES = ("talker", "listener", "monitor", "loner")
 ALLOWED_VARIABLES = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")
@@ -90,12 +90,12 @@ def check_domain_plan(plan, rt=None) -> CheckReport:
                  env=env["monitor"])
         rt.spawn("loner", "course_helpers.nodes:make_talker",
                  params={"name": _NODES["loner"], "topic": "loner_chatter", "rate_hz": 1.0}, env=env["loner"])
-        heard = _wait(rt, lambda: heard_lines(listener), 8.0)
+        heard = poll_until(lambda: heard_lines(listener), 8.0)
         report.add("the team's listener hears the team's talker", bool(heard),
                    "" if heard else "nothing heard in 8 s",
                    hint="Both must share a domain and be able to discover each other (a discovery range "
                         "of OFF hides a node from everyone, its own team included).")
-        sees_monitor = _wait(rt, lambda: "/monitor" in rt.graph_nodes(), 8.0)
+        sees_monitor = poll_until(lambda: "/monitor" in rt.graph_nodes(), 8.0)
         report.add("your notebook sees the monitor", sees_monitor,
                    "" if sees_monitor else "/monitor not in the graph after 8 s",
                    hint="The monitor must be in the kernel's domain with a discovery range that reaches you.")
@@ -122,10 +122,3 @@ def check_domain_plan(plan, rt=None) -> CheckReport:
     return report
 
 
-def _wait(rt, predicate, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return bool(predicate())

@@ -10,7 +10,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64, String
 
-from . import CheckReport
+from . import CheckReport, poll_until
 
 STATUS_TOPIC = "/overheat_check/status"  # the checker's override of status_topic
 DEFAULTS = {"rate_hz": 5.0, "warning_c": 60.0, "critical_c": 80.0}
@@ -114,7 +114,7 @@ def _check_declarations(report: CheckReport, node: Node) -> bool:
 
 def _check_behaviour(rt, report: CheckReport, probe: _Probe) -> None:
     if not report.add(f"it publishes its status on status_topic ({STATUS_TOPIC})",
-                      _wait(lambda: probe.latest() is not None, 3.0), "",
+                      poll_until(lambda: probe.latest() is not None, 3.0), "",
                       "Create the publisher with the *value* of status_topic, and a timer at rate_hz."):
         return
     got = probe.latest()
@@ -171,11 +171,4 @@ def _check_rejections(report: CheckReport, probe: _Probe) -> None:
                "Only reject when warning_c >= critical_c; accept everything else.")
 
 
-def _wait(predicate, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return bool(predicate())
 

@@ -10,7 +10,7 @@ from std_srvs.srv import Trigger
 
 from ..services import AdderServer, IsolatedExecutor
 from ..validation import interface_name
-from . import CheckReport
+from . import CheckReport, poll_until
 
 ANSWER_TIMEOUT_S = 2.0
 
@@ -55,7 +55,7 @@ def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
                       "self.create_service(Trigger, 'battery_status', self.on_status)"):
         return
     client = probe.create_client(Trigger, "/battery_status")
-    if not report.add("the checker's client finds the service", _wait(client.service_is_ready, 3.0)):
+    if not report.add("the checker's client finds the service", poll_until(client.service_is_ready, 3.0)):
         return
     first = report.run("it answers before any reading", lambda: _call(rt, client, Trigger.Request()),
                        hint="The service callback must return the response object.")
@@ -66,7 +66,7 @@ def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
                f"got success={first.success}, message={first.message!r}",
                "Keep self.level = None until the first message arrives and answer 'no reading yet'.")
     publisher = probe.create_publisher(Float32, "/battery_level", 10)
-    if not report.add("it subscribes to /battery_level", _wait(
+    if not report.add("it subscribes to /battery_level", poll_until(
             lambda: publisher.get_subscription_count() >= 1, 3.0), "",
             "self.create_subscription(Float32, 'battery_level', self.on_level, 10)"):
         return
@@ -122,9 +122,10 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
                               "self.create_service(AddTwoInts, 'add_via_relay', self.on_request)"):
                 return report
             client = probe.create_client(AddTwoInts, f"{namespace}/add_via_relay")
-            if not report.add("the checker's client finds the service", _wait(client.service_is_ready, 3.0)):
+            ready = poll_until(client.service_is_ready, 3.0)
+            if not report.add("the checker's client finds the service", ready):
                 return report
-            backend_seen = _wait(lambda: bool(relay.clients) and all(
+            backend_seen = poll_until(lambda: bool(relay.clients) and all(
                 c.service_is_ready() for c in relay.clients), 3.0)
             if not report.add("it has a client of add_two_ints that found the backend", backend_seen, "",
                               "self.create_client(AddTwoInts, 'add_two_ints', ...) in __init__"):
@@ -169,13 +170,6 @@ def _unless(passed: bool, detail: str) -> str:
     return "" if passed else detail
 
 
-def _wait(predicate, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return bool(predicate())
 
 
 def _poll_until(rt, client, accept, timeout_s: float = 1.5):
