@@ -6,7 +6,8 @@ launch file), 07 (domains, discovery), 08 (real transport loss) and 10.
 
 ``TARGET`` is ``module:callable``. The callable is called with the keyword
 arguments; if it returns a node (or a list of nodes) they are spun until the
-process gets SIGTERM or SIGINT, then destroyed, and the process exits 0. A
+process gets SIGTERM or SIGINT, then destroyed, and the process exits 0 (callbacks that are
+running when the signal arrives are allowed to finish first). A
 callable that returns None is run for its side effects and the process exits.
 """
 
@@ -18,6 +19,9 @@ import json
 import os
 import signal
 import sys
+import threading
+
+SPIN_SLICE_S = 0.05  # s; how long one spin_once may wait before the stop flag is checked again
 
 
 def _die_with_parent() -> None:
@@ -44,18 +48,30 @@ def load_target(spec: str):
 
 
 def main(argv: list[str]) -> int:
+    # SIGTERM/SIGINT only ask the spin loop below to stop. Letting rclpy's own handler
+    # shut the context down instead races with callbacks that are running at that moment
+    # (a relay's publish() then raises and the process exits 1 instead of 0).
+    stop_requested = threading.Event()
+
+    def request_stop(_signum, _frame) -> None:
+        stop_requested.set()
+
+    signal.signal(signal.SIGTERM, request_stop)
+    signal.signal(signal.SIGINT, request_stop)
+
     _die_with_parent()
     if len(argv) != 3:
         print("usage: python -m course_helpers.child module:callable '{json kwargs}'",
               file=sys.stderr)
         return 2
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
 
     target = load_target(argv[1])
     kwargs = json.loads(argv[2])
-    rclpy.init()  # default signal handlers: SIGINT and SIGTERM shut this process down
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     try:
         result = target(**kwargs)
         nodes = [result] if isinstance(result, Node) else list(result or [])
@@ -65,10 +81,8 @@ def main(argv: list[str]) -> int:
                 executor.add_node(node)
             print(f"child {os.getpid()} ready: {[n.get_fully_qualified_name() for n in nodes]}",
                   flush=True)
-            try:
-                executor.spin()
-            except (KeyboardInterrupt, ExternalShutdownException):
-                pass
+            while not stop_requested.is_set():
+                executor.spin_once(timeout_sec=SPIN_SLICE_S)  # the signal is seen within one slice
             executor.shutdown(timeout_sec=1.0)
             for node in nodes:
                 node.destroy_node()

@@ -104,6 +104,18 @@ def test_child_process_node_is_reaped(rt):
         os.kill(pid, 0)
 
 
+def test_child_stopped_mid_callback_still_exits_cleanly(rt):
+    """SIGTERM while the relay is inside its publish callback must still give exit code 0."""
+    rt.add(Talker, rate_hz=200)
+    codes = []
+    for _ in range(6):
+        child = rt.spawn("busy_relay", "course_helpers.nodes:make_relay", wait_for="/relay")
+        rt.wait_for_messages("chatter_relayed", String, count=2, timeout=10)
+        codes.append(rt.stop_child("busy_relay"))
+        assert "Traceback" not in child.log(), child.log()
+    assert codes == [0] * 6
+
+
 def test_respawning_a_child_by_name_replaces_it(rt):
     first = rt.spawn("talker_proc", "course_helpers.nodes:make_talker",
                      params={"name": "proc_talker"})
