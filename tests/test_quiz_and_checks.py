@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import glob
 import html
+import json
+import os
 
 import pytest
 
@@ -219,3 +222,17 @@ def test_pretty_printing_uses_the_summary():
     report = CheckReport("Exercise")
     report.add("works", True)
     assert pretty(report) == report.summary()
+
+
+def test_every_chapter_notebook_ends_with_a_quiz():
+    """Each chapter (01 onwards, the lab 08b included) has a quiz cell that runs without error."""
+    notebooks = sorted(glob.glob(os.path.join(os.path.dirname(__file__), "..", "notebooks", "[01]*.ipynb")))
+    chapters = [p for p in notebooks if not os.path.basename(p).startswith("00_")]
+    assert len(chapters) >= 11
+    for path in chapters:
+        with open(path, encoding="utf-8") as handle:
+            cells = json.load(handle)["cells"]
+        quiz_cells = [c for c in cells if c["cell_type"] == "code" and "Quiz(" in "".join(c["source"])]
+        assert quiz_cells, f"{os.path.basename(path)} has no quiz"
+        outputs = quiz_cells[-1].get("outputs", [])
+        assert outputs and all(o["output_type"] != "error" for o in outputs), os.path.basename(path)
