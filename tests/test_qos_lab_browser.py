@@ -32,7 +32,9 @@ pytestmark = pytest.mark.browser
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 NOTEBOOK = os.path.join(REPO, "notebooks", "08b_qos_lab.ipynb")
 ARTIFACTS = os.path.join(REPO, "tests", "artifacts")
-CHROMIUM = "/usr/bin/chromium"
+# Debian's chromium by default; COURSE_CHROMIUM may name another Chromium-based browser that is
+# already installed (GitHub's Ubuntu runners have /usr/bin/google-chrome).
+CHROMIUM = os.environ.get("COURSE_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
 SETTINGS = {  # JupyterLab user settings for the test: no autosave, every cell in the DOM
@@ -62,7 +64,8 @@ def jupyter_lab():
     """A JupyterLab server on a free port: yields (base_url, token); stops it and its kernels after."""
     if not os.path.exists(CHROMIUM):
         pytest.skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) "
-                    "to run the browser tests; Playwright must not download a browser")
+                    "or set COURSE_CHROMIUM to an installed Chromium-based browser to run the browser "
+                    "tests; Playwright must not download a browser")
     pytest.importorskip("playwright.sync_api", reason="playwright (PyPI) is not installed")
     workdir = tempfile.mkdtemp(prefix="qos-lab-browser-")
     for name, values in SETTINGS.items():
