@@ -9,12 +9,17 @@ thread: the baseline) and through the course runtime (``rt.add``), alternating,
 in this one run. The script prints messages per second for each and the ratio
 course / plain (goal: >= 0.95).
 
+The same comparison then runs inside a real Jupyter kernel, where the runtime
+also routes every callback's output to its cell and subscribes to ``/rosout`` to
+show node logs there (``KERNEL_ROUNDS`` alternating rounds).
+
 Idle CPU: a fresh process starts the runtime with two idle nodes and measures
 its CPU time over 10 s (goal: <= 1% of one core).
 """
 
 from __future__ import annotations
 
+import os
 import statistics
 import subprocess
 import sys
@@ -31,6 +36,7 @@ from std_msgs.msg import String
 
 FLOOD_S = 3.0  # seconds of flooding per measurement
 ROUNDS = 5  # alternating rounds of each variant
+KERNEL_ROUNDS = 3  # alternating rounds inside a Jupyter kernel
 IDLE_S = 10.0  # seconds of idle CPU measurement
 
 
@@ -126,6 +132,40 @@ def idle_cpu_percent() -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
+def in_kernel_rates() -> tuple[list[float], list[float]]:
+    """Run KERNEL_ROUNDS alternating rounds inside a fresh Jupyter kernel; return (plain, course)."""
+    from jupyter_client.manager import start_new_kernel
+
+    code = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
+        import executor_throughput as bench
+        plain, course = [], []
+        for _ in range({KERNEL_ROUNDS}):
+            plain.append(bench.plain_rclpy_rate())
+            course.append(bench.course_runtime_rate())
+        print('RATES', plain, course)
+    """)
+    manager, client = start_new_kernel(kernel_name="python3")
+    lines: list[str] = []
+
+    def on_output(msg):
+        if msg["msg_type"] == "stream" and msg["content"]["name"] == "stdout":
+            lines.append(msg["content"]["text"])
+
+    try:
+        reply = client.execute_interactive(code, timeout=600, output_hook=on_output)
+        if reply["content"]["status"] != "ok":
+            raise RuntimeError(f"the kernel run failed: {reply['content'].get('evalue')}")
+    finally:
+        client.stop_channels()
+        manager.shutdown_kernel(now=False)
+    text = "".join(lines)
+    plain_text, course_text = text.split("RATES", 1)[1].strip().split("] [")
+    return ([float(x) for x in plain_text.strip("[]").split(",")],
+            [float(x) for x in course_text.strip("[]\n").split(",")])
+
+
 def _wait(predicate, timeout: float = 5.0) -> None:
     deadline = time.monotonic() + timeout
     while not predicate():
@@ -147,6 +187,12 @@ def main() -> None:
           f"course runtime {statistics.median(course):.0f} msg/s")
     print(f"throughput ratio course/plain = {ratio:.3f} (median of {ROUNDS} rounds; goal >= 0.95)")
     print(f"best-round ratio course/plain = {best_ratio:.3f} (least disturbed by other load)")
+    kernel_plain, kernel_course = in_kernel_rates()
+    kernel_ratio = statistics.median(kernel_course) / statistics.median(kernel_plain)
+    print(f"in a Jupyter kernel: plain rclpy {statistics.median(kernel_plain):.0f} msg/s, course runtime "
+          f"{statistics.median(kernel_course):.0f} msg/s (output routing and /rosout logs on)")
+    print(f"in-kernel throughput ratio course/plain = {kernel_ratio:.3f} "
+          f"(median of {KERNEL_ROUNDS} rounds; goal >= 0.95)")
     cpu = idle_cpu_percent()
     print(f"idle CPU of a started runtime with two idle nodes over {IDLE_S:.0f} s: "
           f"{cpu:.2f}% of one core (goal <= 1%)")

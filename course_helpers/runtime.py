@@ -153,9 +153,10 @@ class CourseRuntime:
                 self._router.start()
             self._internal = Node(INTERNAL_NODE, context=self.context, enable_rosout=False,
                                   start_parameter_services=False)
+            # The hidden node joins the executor only once something on it needs spinning
+            # (a subscription or a client): every node in the executor costs time in each wait.
             if self._in_kernel:
                 self._subscribe_rosout()
-            self.executor.add_node(self._internal)
             self._thread = threading.Thread(target=self._spin, name="ros-executor", daemon=True)
             self._thread.start()
         return self
@@ -356,6 +357,7 @@ class CourseRuntime:
         self._ensure_running()
         received: list = []
         sub = self._internal.create_subscription(msg_type, topic, received.append, qos)
+        self._spin_internal_node()
         try:
             self.wait_until(lambda: len(received) >= count, timeout,
                             f"{count} message(s) on {topic} ({interface_name(msg_type)}); "
@@ -382,9 +384,18 @@ class CourseRuntime:
 
     @property
     def graph(self) -> Node:
-        """The runtime's hidden node, for graph queries (``rt.graph.get_topic_names_and_types()``)."""
+        """The runtime's hidden node, for graph queries (``rt.graph.get_topic_names_and_types()``).
+
+        It is spun by the executor from then on, so subscriptions and clients created on it work.
+        """
         self._ensure_running()
+        self._spin_internal_node()
         return self._internal
+
+    def _spin_internal_node(self) -> None:
+        """Add the hidden node to the executor (once; graph queries alone do not need it)."""
+        if self.executor is not None and self._internal not in self.executor.get_nodes():
+            self.executor.add_node(self._internal)
 
     # ------------------------------------------------------------------ children
     def spawn(self, name: str, target: str, params: dict | None = None,
@@ -472,6 +483,7 @@ class CourseRuntime:
         qos = QoSProfile(depth=100, reliability=QoSReliabilityPolicy.RELIABLE,
                          durability=QoSDurabilityPolicy.VOLATILE)
         self._internal.create_subscription(Log, "/rosout", self._on_log, qos)
+        self._spin_internal_node()
 
     def _on_log(self, entry) -> None:
         stamp = entry.stamp.sec + entry.stamp.nanosec * 1e-9
