@@ -250,7 +250,8 @@ class LaunchGroup:
 
     def stop(self) -> dict[str, int | None]:
         """Stop every child (SIGTERM, then SIGKILL); return exit codes by node name."""
-        return {entry.fqn: self.rt.stop_child(child) for child, entry in self.entries}
+        codes = self.rt.stop_children([child for child, _ in self.entries])
+        return {entry.fqn: codes.get(child) for child, entry in self.entries}
 
     def __repr__(self) -> str:
         state = "running" if self.alive else "stopped"

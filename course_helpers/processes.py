@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from .errors import CourseError
 
-STOP_GRACE_S = 0.8  # SIGTERM, then SIGKILL after this long
+STOP_GRACE_S = 2.0  # s; SIGTERM, then SIGKILL after this long (a clean stop takes about 0.2 s)
 
 
 @dataclass
@@ -32,6 +32,7 @@ class ChildNode:
     process: subprocess.Popen
     log_path: str
     started: float = field(default_factory=time.monotonic)
+    stop_requested: bool = False
 
     @property
     def pid(self) -> int:
@@ -54,10 +55,16 @@ class ChildNode:
             self.process.kill()
         self.process.wait(timeout=5)
 
+    def request_stop(self) -> None:
+        """Send SIGTERM and return at once (``stop()`` then waits for the exit)."""
+        if self.alive and not self.stop_requested:
+            self.process.send_signal(signal.SIGTERM)
+            self.stop_requested = True
+
     def stop(self, grace_s: float = STOP_GRACE_S) -> int:
         """Ask the process to shut down (SIGTERM); SIGKILL it if it has not within ``grace_s``."""
         if self.alive:
-            self.process.send_signal(signal.SIGTERM)
+            self.request_stop()
             try:
                 self.process.wait(timeout=grace_s)
             except subprocess.TimeoutExpired:

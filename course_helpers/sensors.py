@@ -258,14 +258,19 @@ def measure_bandwidth(rt, sizes=(100, 10_000, 100_000, 500_000), rate_hz: float 
                                              lambda raw: received.append(len(raw)), 10, raw=True)
     try:
         for size in sizes:
+            wire = message_size(_payload(size))
+
+            def this_size(n: int, wire: int = wire) -> bool:
+                # a late message of the previous (stopped) publisher must not count for this size
+                return wire / 2 <= n <= wire * 2 + 64
+
             rt.spawn("payload", "course_helpers.sensors:make_payload_publisher",
                      {"size_bytes": size, "rate_hz": rate_hz}, wait_for="/payload_publisher")
-            rt.wait_until(lambda: len(received) >= 2, 10, f"the first {size}-byte messages")
+            rt.wait_until(lambda: sum(map(this_size, received)) >= 2, 10, f"the first {size}-byte messages")
             start_count, start = len(received), time.monotonic()
             time.sleep(duration_s)
-            window = received[start_count:]
+            window = [n for n in received[start_count:] if this_size(n)]
             elapsed = time.monotonic() - start
-            wire = message_size(_payload(size))
             samples.append(BandwidthSample(size, wire, rate_hz, len(window) / elapsed,
                                            sum(window) / elapsed))
             rt.stop_child("payload")
