@@ -19,6 +19,7 @@ its CPU time over 10 s (goal: <= 1% of one core).
 
 from __future__ import annotations
 
+import json
 import os
 import statistics
 import subprocess
@@ -137,14 +138,14 @@ def in_kernel_rates() -> tuple[list[float], list[float]]:
     from jupyter_client.manager import start_new_kernel
 
     code = textwrap.dedent(f"""
-        import sys
+        import json, sys
         sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
         import executor_throughput as bench
         plain, course = [], []
         for _ in range({KERNEL_ROUNDS}):
             plain.append(bench.plain_rclpy_rate())
             course.append(bench.course_runtime_rate())
-        print('RATES', plain, course)
+        print('RATES', json.dumps([plain, course]))
     """)
     manager, client = start_new_kernel(kernel_name="python3")
     lines: list[str] = []
@@ -160,10 +161,8 @@ def in_kernel_rates() -> tuple[list[float], list[float]]:
     finally:
         client.stop_channels()
         manager.shutdown_kernel(now=False)
-    text = "".join(lines)
-    plain_text, course_text = text.split("RATES", 1)[1].strip().split("] [")
-    return ([float(x) for x in plain_text.strip("[]").split(",")],
-            [float(x) for x in course_text.strip("[]\n").split(",")])
+    plain, course = json.loads("".join(lines).split("RATES", 1)[1])
+    return plain, course
 
 
 def _wait(predicate, timeout: float = 5.0) -> None:

@@ -105,6 +105,20 @@ class _CourseMultiThreadedExecutor(MultiThreadedExecutor):
             self._course_runtime._record_error(None, "a multi-threaded callback", exc)
 
 
+def _spin_until_stopped(executor, stop_requested: Callable[[], bool], on_error: Callable) -> None:
+    """Spin ``executor`` in this thread until ``stop_requested()`` or its context shuts down.
+
+    No timeout (a timeout costs a new rcl timer per wait): whoever sets the stop flag
+    also wakes the executor, which ends the wait. An exception never ends the thread.
+    """
+    context = executor.context
+    while not stop_requested() and context.ok():
+        try:
+            executor._spin_once_impl(None, stop_requested)
+        except Exception as exc:
+            on_error(exc)
+
+
 class _RosoutReader:
     """In a kernel: read /rosout on a hidden node, in a thread and executor of its own.
 
@@ -129,12 +143,7 @@ class _RosoutReader:
         self.thread.start()
 
     def _spin(self) -> None:
-        context = self.executor.context
-        while not self._stop.is_set() and context.ok():
-            try:
-                self.executor._spin_once_impl(None, self._stop.is_set)
-            except Exception as exc:  # a bad log entry must not end the thread
-                self._on_error(exc)
+        _spin_until_stopped(self.executor, self._stop.is_set, self._on_error)
 
     def stop(self) -> None:
         """End the thread, then destroy the node (before the context shuts down)."""
@@ -240,15 +249,8 @@ class CourseRuntime:
         return self.start()
 
     def _spin(self) -> None:
-        executor, context = self.executor, self.context
-        stop_requested = self._stop.is_set
-        while not stop_requested() and context.ok():
-            try:
-                # No timeout (a timeout costs a new rcl timer per wait); stop() sets the
-                # stop flag and wakes the executor, which ends the wait.
-                executor._spin_once_impl(None, stop_requested)
-            except Exception as exc:  # never let one bad callback end the thread
-                self._record_error(None, "the executor", exc)
+        _spin_until_stopped(self.executor, self._stop.is_set,
+                            lambda exc: self._record_error(None, "the executor", exc))
         self._router.enter(None)
 
     # ------------------------------------------------------------------ nodes
@@ -439,8 +441,8 @@ class CourseRuntime:
         return self._internal
 
     def _spin_internal_node(self) -> None:
-        """Add the hidden node to the executor (once; graph queries alone do not need it)."""
-        if self.executor is not None and self._internal not in self.executor.get_nodes():
+        """Add the hidden node to the executor (a no-op once added; graph queries alone do not need it)."""
+        if self.executor is not None:
             self.executor.add_node(self._internal)
 
     # ------------------------------------------------------------------ children
