@@ -929,12 +929,14 @@ class Delivery:
 
 def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0,
                      expected_hz: float = 30.0, qos: QoSProfile | int = 50,
-                     first_timeout: float = 3.0) -> Delivery:
+                     first_timeout: float = 8.0) -> Delivery:
     """Count messages on ``topic`` for ``seconds``; find missed frames from gaps in header stamps.
 
     A gap of k frame periods between consecutive stamps means k - 1 frames never made it.
     The age is receive time minus the camera's stamp (same machine, same clock). If
-    nothing arrives within ``first_timeout`` s, the result says 0 messages (all missed).
+    nothing arrives within ``first_timeout`` s, the result says 0 messages (all missed). The
+    default leaves room for a just-spawned process to start, be discovered and send (a busy
+    CI machine once needed more than 3 s).
     """
     stamps: list[float] = []
     ages: list[float] = []
