@@ -14,7 +14,7 @@ NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
-	@$(PY) -m course_helpers.build_interfaces
+	@$(PY) -m course_helpers.core.build_interfaces
 
 $(STAMP): environment.txt pyproject.toml
 	@$(PYTHON) tools/check_platform.py

@@ -22,7 +22,7 @@ import sys
 import time
 
 from course_helpers import get_runtime
-from course_helpers.experiments import (
+from course_helpers.chapters.ch08b_lab.engine import (
     CHILD_LABEL,
     ExperimentConfig,
     make_qos,
@@ -59,7 +59,7 @@ def plain_baseline(config: ExperimentConfig) -> tuple[int, float]:
     """Feed a counting-only rclpy subscriber from the lab's publisher; (received, seconds sending)."""
     from course_interfaces.msg import ExperimentSample
 
-    from course_helpers.experiments import SUMMARY_TAG
+    from course_helpers.chapters.ch08b_lab.engine import SUMMARY_TAG
 
     rt = get_runtime()
     topic = "/qos_lab/plain_baseline"
@@ -70,7 +70,7 @@ def plain_baseline(config: ExperimentConfig) -> tuple[int, float]:
         received[0] += 1
 
     node.create_subscription(ExperimentSample, topic, count, make_qos(config.qos_dict()))
-    child = rt.spawn(CHILD_LABEL, "course_helpers.experiments:make_lab_publisher",
+    child = rt.spawn(CHILD_LABEL, "course_helpers.chapters.ch08b_lab.engine:make_lab_publisher",
                      params={"topic": topic, "qos": config.qos_dict(), "rate_hz": config.rate_hz,
                              "payload_bytes": config.payload_bytes, "count": config.count,
                              "deadline_s": config.duration_s * 2 + 2},
@@ -92,7 +92,7 @@ def plain_baseline(config: ExperimentConfig) -> tuple[int, float]:
 
 def throughput_ratio() -> None:
     """Samples per second: the lab's subscriber (alone, and under the live plot) vs a plain one."""
-    from course_helpers.qos_lab import qos_lab
+    from course_helpers.chapters.ch08b_lab.panel import qos_lab
 
     config = ExperimentConfig(reliability="best_effort", depth=1000, rate_hz=5000, payload_bytes=16,
                               duration_s=2.0, label="throughput")

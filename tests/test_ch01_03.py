@@ -16,7 +16,7 @@ from rclpy.node import Node
 from std_msgs.msg import Float64
 
 from course_helpers import CourseError
-from course_helpers.architecture import (
+from course_helpers.chapters.ch01_architecture import (
     ChatterCounter,
     check_crash_exercise,
     classify_port,
@@ -25,8 +25,13 @@ from course_helpers.architecture import (
     loaded_libraries,
     transports_in_use,
 )
-from course_helpers.checks.topics import check_cmd_vel_logger, check_throughput, check_tilt_warning
-from course_helpers.sensors import (
+from course_helpers.chapters.ch02_executors import (
+    check_responsive_robot,
+    measure_blocking,
+    measure_timer_jitter,
+    spin_for,
+)
+from course_helpers.chapters.ch03_topics import (
     CmdVelPublisher,
     ImuPublisher,
     TemperatureSensor,
@@ -35,8 +40,8 @@ from course_helpers.sensors import (
     message_size,
     quaternion_from_rpy,
 )
-from course_helpers.solutions import topics as solution
-from course_helpers.timing import check_responsive_robot, measure_blocking, measure_timer_jitter, spin_for
+from course_helpers.checks.ch03_topics import check_cmd_vel_logger, check_throughput, check_tilt_warning
+from course_helpers.solutions import ch03_topics as solution
 
 
 # ---------------------------------------------------------------------- chapter 01
@@ -65,9 +70,9 @@ def test_port_classification_follows_the_rtps_mapping():
 
 
 def test_killing_one_node_process_leaves_the_others_talking(rt):
-    a = rt.spawn("talker_a", "course_helpers.architecture:make_named_talker",
+    a = rt.spawn("talker_a", "course_helpers.chapters.ch01_architecture:make_named_talker",
                  {"name": "talker_a", "rate_hz": 20}, wait_for="/talker_a")
-    rt.spawn("talker_b", "course_helpers.architecture:make_named_talker",
+    rt.spawn("talker_b", "course_helpers.chapters.ch01_architecture:make_named_talker",
              {"name": "talker_b", "rate_hz": 20}, wait_for="/talker_b")
     counter = rt.add(ChatterCounter)
     rt.wait_until(lambda: counter.counts["talker_a"] and counter.counts["talker_b"], 10, "both talkers")
@@ -82,9 +87,9 @@ def test_killing_one_node_process_leaves_the_others_talking(rt):
 
 
 def test_crash_exercise_checker(rt):
-    rt.spawn("talker_a", "course_helpers.architecture:make_named_talker", {"name": "talker_a"},
+    rt.spawn("talker_a", "course_helpers.chapters.ch01_architecture:make_named_talker", {"name": "talker_a"},
              wait_for="/talker_a")
-    b = rt.spawn("talker_b", "course_helpers.architecture:make_named_talker", {"name": "talker_b"},
+    b = rt.spawn("talker_b", "course_helpers.chapters.ch01_architecture:make_named_talker", {"name": "talker_b"},
                  wait_for="/talker_b")
     counter = rt.add(ChatterCounter)
     rt.wait_until(lambda: counter.counts["talker_b"] > 0, 10, "talker_b")
@@ -92,7 +97,7 @@ def test_crash_exercise_checker(rt):
     not_yet = check_crash_exercise(rt, counter, window_s=1.0)
     assert not not_yet.passed
     assert "still hearing talker_b" in not_yet.summary()
-    rt.spawn("talker_c", "course_helpers.architecture:make_named_talker", {"name": "talker_c"},
+    rt.spawn("talker_c", "course_helpers.chapters.ch01_architecture:make_named_talker", {"name": "talker_c"},
              wait_for="/talker_c")
     b.kill()
     time.sleep(0.2)

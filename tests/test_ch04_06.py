@@ -14,12 +14,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from course_helpers import CourseError
-from course_helpers.actions import FeedbackProgress, action_parts, status_name
-from course_helpers.checks.actions import check_navigation_server, destroy_actions
-from course_helpers.checks.params import check_overheat_monitor
-from course_helpers.checks.services import check_battery_server, check_relay_server
-from course_helpers.nodes import Listener, Talker
-from course_helpers.params import (
+from course_helpers.chapters.ch04_services import measure_round_trips, run_deadlock_demo
+from course_helpers.chapters.ch05_actions import FeedbackProgress, action_parts, status_name
+from course_helpers.chapters.ch06_parameters import (
     NodeLaunch,
     RateTalker,
     RateTuner,
@@ -27,10 +24,13 @@ from course_helpers.params import (
     load_parameter_file,
     params_file_arguments,
 )
-from course_helpers.services import measure_round_trips, run_deadlock_demo
-from course_helpers.solutions.actions import NavigationServer
-from course_helpers.solutions.params import OverheatMonitor
-from course_helpers.solutions.services import BatteryMonitor, SumRelay
+from course_helpers.checks.ch04_services import check_battery_server, check_relay_server
+from course_helpers.checks.ch05_actions import check_navigation_server, destroy_actions
+from course_helpers.checks.ch06_parameters import check_overheat_monitor
+from course_helpers.nodes import Listener, Talker
+from course_helpers.solutions.ch04_services import BatteryMonitor, SumRelay
+from course_helpers.solutions.ch05_actions import NavigationServer
+from course_helpers.solutions.ch06_parameters import OverheatMonitor
 
 
 # ---------------------------------------------------------------------- chapter 04: services

@@ -21,11 +21,13 @@ from rclpy.qos import (
 )
 from std_msgs.msg import String
 
-from course_helpers import CourseError, dds, qos
-from course_helpers.checks.dds import check_domain_plan
-from course_helpers.checks.qos import check_channel_qos, check_mismatched_subscriber
-from course_helpers.solutions import dds as dds_solution
-from course_helpers.solutions import qos as qos_solution
+from course_helpers import CourseError
+from course_helpers.chapters.ch07_dds import dds
+from course_helpers.chapters.ch08_qos import qos
+from course_helpers.checks.ch07_dds import check_domain_plan
+from course_helpers.checks.ch08_qos import check_channel_qos, check_mismatched_subscriber
+from course_helpers.solutions import ch07_dds as dds_solution
+from course_helpers.solutions import ch08_qos as qos_solution
 
 
 # ---------------------------------------------------------------------- chapter 07
@@ -66,7 +68,7 @@ def test_discovery_server_connects_clients_only_through_it_and_is_reaped(rt):
     env = {"ROS_DISCOVERY_SERVER": f"127.0.0.1:{port}"}
     rt.spawn("ds_talker", "course_helpers.nodes:make_talker", params={"name": "ds_talker", "rate_hz": 10.0},
              env=env)
-    listener = rt.spawn("ds_listener", "course_helpers.dds:make_printing_listener",
+    listener = rt.spawn("ds_listener", "course_helpers.chapters.ch07_dds.dds:make_printing_listener",
                         params={"name": "ds_listener"}, env=env)
     time.sleep(2.0)
     assert dds.heard_lines(listener) == []  # no server yet: clients cannot find each other

@@ -13,7 +13,7 @@ import time
 import pytest
 
 from course_helpers import CourseError
-from course_helpers.experiments import (
+from course_helpers.chapters.ch08b_lab.engine import (
     CHILD_LABEL,
     MAX_PAYLOAD_BYTES,
     ExperimentConfig,
@@ -147,7 +147,7 @@ def test_stop_event_ends_the_run_and_the_child_within_a_second(rt):
 
 # ---------------------------------------------------------------------- the widget panel
 def test_panel_prevents_or_explains_bad_combinations():
-    from course_helpers.qos_lab import qos_lab
+    from course_helpers.chapters.ch08b_lab.panel import qos_lab
 
     lab = qos_lab()
     try:
@@ -168,7 +168,7 @@ def test_panel_prevents_or_explains_bad_combinations():
 
 
 def test_panel_plots_live_and_a_rerun_of_the_cell_leaves_nothing_running(rt):
-    from course_helpers.qos_lab import qos_lab
+    from course_helpers.chapters.ch08b_lab.panel import qos_lab
 
     lab = qos_lab()
     first_frame = lab.image.value
@@ -200,8 +200,8 @@ def test_plots_show_the_numbers_of_finished_runs():
     import matplotlib
 
     matplotlib.use("Agg")
-    from course_helpers.experiments import Snapshot
-    from course_helpers.lab_plots import ResultsFigure, draw_results
+    from course_helpers.chapters.ch08b_lab.engine import Snapshot
+    from course_helpers.chapters.ch08b_lab.plots import ResultsFigure, draw_results
 
     snaps = [Snapshot(t=0.1 * i, delivered=9 * i, lost_by_sequence=i, lost_events=i // 2, published=10 * i,
                       publish_errors=0, latency_p50_ms=1.0, latency_p90_ms=2.0, latency_p99_ms=3.0)

@@ -1,4 +1,4 @@
-"""The computation-graph view (course_helpers.graph) against the live graph of real nodes."""
+"""The computation-graph view (course_helpers.viz.graph) against the live graph of real nodes."""
 
 from __future__ import annotations
 
@@ -17,7 +17,8 @@ from std_msgs.msg import String
 from test_msgs.action import Fibonacci
 
 from course_helpers import CourseError, get_runtime
-from course_helpers.graph import (
+from course_helpers.nodes import Listener, Talker
+from course_helpers.viz.graph import (
     REFRESHER_THREAD_NAME,
     Edge,
     GraphSnapshot,
@@ -30,7 +31,6 @@ from course_helpers.graph import (
     short_type,
     stop_live_graphs,
 )
-from course_helpers.nodes import Listener, Talker
 
 from .conftest import REPO
 from .kernel_session import KernelSession
@@ -260,7 +260,7 @@ def test_live_graph_updates_a_kernel_while_it_is_idle():
     kernel = KernelSession(cwd=REPO)
     try:
         setup = ("from course_helpers import get_runtime\n"
-                 "from course_helpers.graph import live_graph, refresher_threads\n"
+                 "from course_helpers.viz.graph import live_graph, refresher_threads\n"
                  "rt = get_runtime()\n")
         cell = "view = live_graph(period_s=0.3)\nview"
         assert kernel.run(setup)[1] is None

@@ -1,4 +1,4 @@
-"""Real rosidl builds of the course's interface package (course_helpers.build_interfaces).
+"""Real rosidl builds of the course's interface package (course_helpers.core.build_interfaces).
 
 Each build runs CMake and the C/C++ compilers for about 20-30 s; nothing is mocked.
 Packages are built into temporary prefixes, never into the venv.
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy
 import pytest
 
-from course_helpers.build_interfaces import (
+from course_helpers.core.build_interfaces import (
     COURSE_INTERFACES_DIR,
     BuildResult,
     build_package,
@@ -120,7 +120,7 @@ def test_second_build_with_same_sources_is_a_fast_no_op(clean_build):
 @pytest.mark.slow
 def test_command_line_reports_up_to_date(clean_build):
     done = subprocess.run(
-        [sys.executable, "-m", "course_helpers.build_interfaces",
+        [sys.executable, "-m", "course_helpers.core.build_interfaces",
          "--prefix", str(clean_build.install_prefix)],
         cwd=REPO_ROOT, capture_output=True, text=True, timeout=60,
     )  # fmt: skip
@@ -154,7 +154,7 @@ def run_cli_with_path(tmp_path: Path, tools: list[str]) -> subprocess.CompletedP
         (bin_dir / tool).symlink_to(shutil.which(tool))
     env = {"PATH": str(bin_dir), "HOME": str(tmp_path)}
     return subprocess.run(
-        [sys.executable, "-m", "course_helpers.build_interfaces",
+        [sys.executable, "-m", "course_helpers.core.build_interfaces",
          "--prefix", str(tmp_path / "prefix")],
         cwd=REPO_ROOT, env=env, capture_output=True, text=True, timeout=60,
     )  # fmt: skip

@@ -16,9 +16,9 @@ from std_srvs.srv import SetBool, Trigger
 from test_msgs.action import Fibonacci
 from test_msgs.msg import UnboundedSequences
 
-from course_helpers.errors import CourseError
+from course_helpers.core.errors import CourseError
 from course_helpers.nodes import Listener, Talker
-from course_helpers.ros2cli import message_to_yaml, run, set_message_fields
+from course_helpers.notebook.ros2cli import message_to_yaml, run, set_message_fields
 
 
 @pytest.fixture
@@ -386,7 +386,7 @@ def test_magic_in_a_real_ipython_shell(rt, capsys):
     config = Config()
     config.HistoryManager.hist_file = ":memory:"
     shell = InteractiveShell.instance(config=config)
-    shell.run_line_magic("load_ext", "course_helpers.magics")
+    shell.run_line_magic("load_ext", "course_helpers.notebook.magics")
     assert "ros2" in shell.magics_manager.magics["line"]
     assert "ros2" in shell.magics_manager.magics["cell"]
 

@@ -1,4 +1,4 @@
-"""Quizzes (course_helpers.quiz) and the exercise checker report (course_helpers.checks)."""
+"""Quizzes (course_helpers.notebook.quiz) and the exercise checker report (course_helpers.checks)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from course_helpers import CourseError, WaitTimeout
 from course_helpers.checks import CheckReport, Criterion
-from course_helpers.quiz import Choice, Question, Quiz
+from course_helpers.notebook.quiz import Choice, Question, Quiz
 
 
 def make_quiz() -> Quiz:

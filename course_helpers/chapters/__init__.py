@@ -1,0 +1,4 @@
+"""One module or package per chapter: its demos, measurements, widgets and plots.
+
+A chapter imports from core/, notebook/, viz/ and nodes/, never from another chapter.
+"""

@@ -1,0 +1,327 @@
+"""Timing measurements of chapter 02 (nodes and executors), and their plots.
+
+* :func:`spin_for` spins a node in a dedicated single- or multi-threaded executor for a few
+  seconds, then destroys it: the notebook compares executors and callback groups with it.
+* :func:`tick_gaps` / :func:`plot_tick_gaps` turn a timer's tick times into gaps and draw them.
+* :func:`measure_timer_jitter` / :func:`plot_jitter` measure how regularly a timer fires, with
+  and without a CPU-heavy callback competing for the same executor.
+
+The measurements run real rclpy timers in the kernel's context; on a busy machine the numbers
+move, so the notebook asserts only the qualitative result (who stalls, who stays regular).
+"""
+
+from __future__ import annotations
+
+import statistics
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from itertools import pairwise
+
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.node import Node
+
+from course_helpers.core.errors import CourseError
+
+EXECUTORS = ("single", "multi")
+
+
+def spin_for(node_factory: Callable[..., Node], duration_s: float = 2.0, executor: str = "single",
+             threads: int = 2, **kwargs) -> Node:
+    """Build a node, spin it alone in a fresh executor for ``duration_s`` seconds, destroy it.
+
+    ``node_factory`` is a Node subclass (or a function returning a node); ``kwargs`` go to it.
+    ``executor`` is 'single' (SingleThreadedExecutor) or 'multi' (MultiThreadedExecutor with
+    ``threads`` threads). The node joins the kernel's context, like ``rt.add``, but is spun by
+    its own executor so the measurement is not mixed with the notebook's other nodes. Returns
+    the (destroyed) node so its recorded attributes can be read.
+    """
+    from course_helpers.core.runtime import get_runtime
+
+    if executor not in EXECUTORS:
+        raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
+    if not 0 < duration_s <= 30:
+        raise CourseError(f"duration_s must be in (0, 30] seconds, got {duration_s!r}")
+    rt = get_runtime()
+    node = rt.build(node_factory, **kwargs)
+    if not isinstance(node, Node):
+        raise CourseError(f"{node_factory!r} returned {type(node).__name__}, not an rclpy Node")
+    if executor == "single":
+        spinner = SingleThreadedExecutor(context=rt.context)
+    else:
+        spinner = MultiThreadedExecutor(num_threads=threads, context=rt.context)
+    spinner.add_node(node)
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set() and rt.context.ok():
+            spinner.spin_once(timeout_sec=0.05)
+
+    thread = threading.Thread(target=spin, name=f"spin_for-{executor}", daemon=True)
+    thread.start()
+    try:
+        time.sleep(duration_s)
+    finally:
+        stop.set()
+        thread.join(timeout=5)
+        spinner.shutdown(timeout_sec=5)
+        _finish_pending_callbacks(spinner)
+        node.destroy_node()
+    return node
+
+
+def _finish_pending_callbacks(spinner) -> None:
+    """Let callbacks already handed to a multi-threaded executor's pool finish before destruction.
+
+    rclpy's ``MultiThreadedExecutor.shutdown`` does not wait for its thread pool; a callback
+    still queued there would run after the node is destroyed and fail.
+    """
+    pool = getattr(spinner, "_executor", None)
+    if pool is not None:
+        pool.shutdown(wait=True)
+    for task in getattr(spinner, "_futures", []):
+        if task.done():
+            task.exception()  # mark any error as seen
+
+
+# ---------------------------------------------------------------------- a blocking callback
+class ControlLoopWithPlanner(Node):
+    """A fast control timer and a slow 'planner' timer whose callback blocks (sleeps).
+
+    ``separate_groups=True`` puts each timer in its own mutually exclusive callback group, so
+    a multi-threaded executor can run the control tick while the planner blocks.
+    """
+
+    def __init__(self, control_period_s: float = 0.02, plan_period_s: float = 0.5,
+                 block_s: float = 0.3, separate_groups: bool = False, name: str = "controller"):
+        super().__init__(name)
+        self.period_s, self.block_s = control_period_s, block_s
+        control_group = MutuallyExclusiveCallbackGroup() if separate_groups else None
+        planner_group = MutuallyExclusiveCallbackGroup() if separate_groups else None
+        self.ticks: list[float] = []  # time.monotonic() of each control tick, s
+        self.control_timer = self.create_timer(control_period_s, self.control_tick,
+                                               callback_group=control_group)
+        self.plan_timer = self.create_timer(plan_period_s, self.plan, callback_group=planner_group)
+
+    def control_tick(self) -> None:
+        self.ticks.append(time.monotonic())
+
+    def plan(self) -> None:
+        time.sleep(self.block_s)  # stands in for a slow computation or a blocking call
+
+
+@dataclass
+class GapResult:
+    """Gaps between consecutive ticks of a timer (seconds) in one executor configuration."""
+
+    label: str
+    period_s: float
+    gaps_s: list[float]
+    ticks: list[float] = field(default_factory=list, repr=False)
+
+    @property
+    def max_gap_s(self) -> float:
+        return max(self.gaps_s) if self.gaps_s else float("inf")
+
+    @property
+    def tick_count(self) -> int:
+        return len(self.ticks)
+
+
+def tick_gaps(ticks: list[float], period_s: float, label: str = "") -> GapResult:
+    """Gaps between consecutive tick times (the first tick is the reference)."""
+    gaps = [b - a for a, b in pairwise(ticks)]
+    return GapResult(label, period_s, gaps, list(ticks))
+
+
+def measure_blocking(executor: str = "single", separate_groups: bool = False, duration_s: float = 2.0,
+                     block_s: float = 0.3, control_period_s: float = 0.02,
+                     node_class: Callable[..., Node] = ControlLoopWithPlanner) -> GapResult:
+    """Run a control loop next to a blocking planner and return the control timer's gaps.
+
+    ``node_class`` must accept ``separate_groups`` and record ``ticks`` (like
+    :class:`ControlLoopWithPlanner`); the notebook passes its own class.
+    """
+    node = spin_for(node_class, duration_s, executor, separate_groups=separate_groups)
+    groups = "separate groups" if separate_groups else "one default group"
+    label = f"{'single' if executor == 'single' else 'multi'}-threaded, {groups}"
+    return tick_gaps(node.ticks, getattr(node, "period_s", control_period_s), label)
+
+
+def plot_tick_gaps(results: list[GapResult], block_s: float | None = None):
+    """One row per configuration: every control tick as a tick mark, and the gaps over time."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(results), 1, figsize=(9, 1.6 + 1.3 * len(results)), sharex=True,
+                             squeeze=False)
+    for ax, result in zip(axes[:, 0], results, strict=True):
+        if not result.ticks:
+            ax.text(0.5, 0.5, "no ticks", transform=ax.transAxes, ha="center")
+            continue
+        start = result.ticks[0]
+        times = [t - start for t in result.ticks[1:]]
+        gaps_ms = [g * 1e3 for g in result.gaps_s]
+        ax.vlines(times, 0, gaps_ms, color="#2563eb", linewidth=1)
+        ax.axhline(result.period_s * 1e3, color="#16a34a", linestyle="--", linewidth=1,
+                   label=f"period {result.period_s * 1e3:.0f} ms")
+        if block_s:
+            ax.axhline(block_s * 1e3, color="#dc2626", linestyle=":", linewidth=1,
+                       label=f"blocking call {block_s * 1e3:.0f} ms")
+        ax.set_ylabel("gap (ms)")
+        ax.set_title(result.label, fontsize=10, loc="left")
+        ax.legend(loc="upper right", fontsize=7)
+    axes[-1, 0].set_xlabel("time since first control tick (s)")
+    fig.suptitle("Gaps between control-timer ticks", fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+# ---------------------------------------------------------------------- timer jitter
+class JitterProbe(Node):
+    """A periodic timer that records when it fires, optionally beside a CPU-heavy timer."""
+
+    def __init__(self, period_s: float = 0.01, heavy_ms: float = 0.0, heavy_period_s: float = 0.037,
+                 separate_groups: bool = False, name: str = "jitter_probe"):
+        super().__init__(name)
+        self.heavy_s = heavy_ms / 1e3
+        self.fired: list[float] = []  # time.perf_counter() at each call, s
+        group = MutuallyExclusiveCallbackGroup() if separate_groups else None
+        self.timer = self.create_timer(period_s, self.on_timer)
+        if heavy_ms > 0:
+            self.heavy_timer = self.create_timer(heavy_period_s, self.crunch, callback_group=group)
+
+    def on_timer(self) -> None:
+        self.fired.append(time.perf_counter())
+
+    def crunch(self) -> None:
+        deadline = time.perf_counter() + self.heavy_s
+        total = 0
+        while time.perf_counter() < deadline:  # pure-Python arithmetic: keeps a CPU core busy
+            total += sum(range(200))
+
+
+@dataclass
+class JitterResult:
+    """Intervals between calls of a periodic timer (seconds)."""
+
+    label: str
+    period_s: float
+    intervals_s: list[float]
+
+    @property
+    def deviations_ms(self) -> list[float]:
+        """interval - period, in milliseconds (positive: late)."""
+        return [(i - self.period_s) * 1e3 for i in self.intervals_s]
+
+    @property
+    def std_ms(self) -> float:
+        return statistics.pstdev(self.deviations_ms) if self.intervals_s else float("nan")
+
+    @property
+    def worst_ms(self) -> float:
+        """The largest deviation from the period, either way (ms)."""
+        return max(abs(d) for d in self.deviations_ms) if self.intervals_s else float("nan")
+
+    def percentile_ms(self, q: float) -> float:
+        """The ``q``-th percentile (0-100) of the absolute deviation from the period (ms)."""
+        values = sorted(abs(d) for d in self.deviations_ms)
+        if not values:
+            return float("nan")
+        return values[min(len(values) - 1, int(round(q / 100 * (len(values) - 1))))]
+
+    def summary(self) -> str:
+        return (f"{self.label}: {len(self.intervals_s)} intervals, std {self.std_ms:.2f} ms, "
+                f"95% within {self.percentile_ms(95):.2f} ms, worst {self.worst_ms:.2f} ms")
+
+
+def measure_timer_jitter(period_s: float = 0.01, duration_s: float = 2.0, heavy_ms: float = 0.0,
+                         heavy_period_s: float = 0.037, executor: str = "single",
+                         separate_groups: bool = False, label: str | None = None) -> JitterResult:
+    """Fire a timer every ``period_s`` for ``duration_s`` and return the measured intervals.
+
+    ``heavy_ms > 0`` adds a second timer (every ``heavy_period_s``) whose callback keeps the CPU
+    busy for that many milliseconds, in the same executor.
+    """
+    if not 0.001 <= period_s <= 1:
+        raise CourseError(f"period_s must be 0.001..1 s, got {period_s!r}")
+    if heavy_ms < 0 or heavy_ms >= heavy_period_s * 1e3:
+        raise CourseError(f"heavy_ms must be >= 0 and shorter than heavy_period_s "
+                          f"({heavy_period_s * 1e3:g} ms), got {heavy_ms!r}")
+    node = spin_for(JitterProbe, duration_s, executor, period_s=period_s, heavy_ms=heavy_ms,
+                    heavy_period_s=heavy_period_s, separate_groups=separate_groups)
+    intervals = [b - a for a, b in pairwise(node.fired)]
+    if label is None:
+        label = "idle" if heavy_ms == 0 else f"beside a CPU-heavy callback ({heavy_ms:g} ms)"
+    return JitterResult(label, period_s, intervals)
+
+
+def plot_jitter(results: list[JitterResult], bins: int = 60):
+    """One histogram of timer intervals per measurement, stacked on a shared axis (ms)."""
+    import matplotlib.pyplot as plt
+
+    all_ms = [i * 1e3 for r in results for i in r.intervals_s]
+    if not all_ms:
+        raise CourseError("no intervals to plot; measure for longer")
+    colours = ["#16a34a", "#dc2626", "#7c3aed", "#0891b2"]
+    low, high = 0.0, max(max(all_ms), 2 * results[0].period_s * 1e3)
+    edges = [low + (high - low) * k / bins for k in range(bins + 1)]
+    fig, axes = plt.subplots(len(results), 1, figsize=(8.5, 1.2 + 1.5 * len(results)), sharex=True,
+                             squeeze=False)
+    for ax, result, colour in zip(axes[:, 0], results, colours, strict=False):
+        ax.hist([i * 1e3 for i in result.intervals_s], bins=edges, color=colour, alpha=0.85)
+        ax.axvline(result.period_s * 1e3, color="#111827", linestyle="--", linewidth=1)
+        ax.set_yscale("log")
+        ax.set_ylabel("count")
+        ax.set_title(f"{result.label}: std {result.std_ms:.2f} ms, 95% of calls within "
+                     f"{result.percentile_ms(95):.2f} ms of the period", fontsize=9, loc="left")
+    axes[-1, 0].set_xlabel(f"interval between timer calls (ms); dashed line: the period, "
+                           f"{results[0].period_s * 1e3:g} ms")
+    fig.suptitle("Timer jitter: the same timer, idle and beside a CPU-heavy callback", fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
+# ---------------------------------------------------------------------- the exercise
+def check_responsive_robot(node_class, duration_s: float = 2.5, threads: int = 3):
+    """Check chapter 02's exercise: a heartbeat that stays regular beside slow callbacks.
+
+    ``node_class()`` must build a node with three timers: ``heartbeat`` every 0.1 s recording
+    ``self.beats`` (time.monotonic()), ``camera`` every 0.2 s sleeping 0.05 s and counting
+    ``self.frames``, ``planner`` every 0.5 s sleeping 0.3 s and counting ``self.plans``. The
+    checker spins it in a MultiThreadedExecutor with ``threads`` threads.
+    """
+    from course_helpers.checks import CheckReport
+
+    report = CheckReport("Exercise: keep the heartbeat regular")
+    node = report.run("the node starts and spins",
+                      lambda: spin_for(node_class, duration_s, "multi", threads=threads),
+                      hint="Run the class cell first; __init__ takes no arguments.")
+    if node is None:
+        return report
+    report.add("the node starts and spins", True)
+    beats = list(getattr(node, "beats", []))
+    frames, plans = getattr(node, "frames", 0), getattr(node, "plans", 0)
+    gaps = [b - a for a, b in pairwise(beats)]
+    worst = max(gaps) if gaps else float("inf")
+    enough = len(beats) >= 0.8 * duration_s / 0.1
+    report.add("the heartbeat fired about every 0.1 s", enough,
+               "" if enough else "fewer than 80% of the expected beats",
+               hint="Record time.monotonic() in self.beats at every heartbeat.")
+    if worst < 0.15:
+        detail = ""
+    elif worst >= 0.25:
+        detail = "a gap of 0.25 s or more: the heartbeat waited for the planner"
+    else:
+        detail = "a gap between 0.15 and 0.25 s"
+    report.add("no gap between heartbeats above 0.15 s", worst < 0.15, detail,
+               hint="Callbacks in one mutually exclusive group never overlap: give the heartbeat "
+                    "its own callback group, separate from the slow callbacks.")
+    report.add("the camera callback kept running (>= 5 frames)", frames >= 5,
+               "" if frames >= 5 else "fewer than 5 frames",
+               hint="Keep the 0.2 s camera timer and count self.frames.")
+    report.add("the planner still ran (>= 2 plans)", plans >= 2,
+               "" if plans >= 2 else "fewer than 2 plans",
+               hint="Keep the 0.5 s planner with its 0.3 s sleep; making it fast is not the fix.")
+    return report

@@ -1,0 +1,400 @@
+"""Service helpers for chapter 04: the deadlock demo and the topic-vs-service latency measurement.
+
+* :func:`run_deadlock_demo` runs a node that calls a service from inside a callback
+  on its *own* executor and context, in a thread of its own, and reports whether
+  the call returned within a time limit. A deadlocked demo is unblocked and torn
+  down afterwards, so the kernel's runtime never hangs.
+* :class:`IsolatedExecutor` is the sandbox behind it (also used by the chapter's
+  checker for the "service that calls a service" exercise).
+* :func:`measure_round_trips` times, against a node in a child process, how long a
+  caller waits for ``publish()``, a topic message, a topic ping-pong and a service
+  call; :func:`plot_round_trips` draws the result.
+
+Everything runs real rclpy nodes over Fast DDS.
+"""
+
+from __future__ import annotations
+
+import statistics
+import threading
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Int64
+
+from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.validation import check_namespace
+
+DEMO_NAMESPACE = "/deadlock_demo"
+ADD_SERVICE = "add_two_ints"
+EXECUTOR_KINDS = ("single", "multi")
+
+
+# ---------------------------------------------------------------------- a reference adder
+def _add_two_ints_type():
+    from course_interfaces.srv import AddTwoInts
+
+    return AddTwoInts
+
+
+class AdderServer(Node):
+    """Offers ``add_two_ints`` (course_interfaces/srv/AddTwoInts) and counts the requests it answered."""
+
+    def __init__(self, name: str = "adder", service: str = ADD_SERVICE, **node_kwargs):
+        super().__init__(name, **node_kwargs)
+        self.answered = 0
+        self.service = self.create_service(_add_two_ints_type(), service, self.on_request)
+
+    def on_request(self, request, response):
+        response.sum = request.a + request.b
+        self.answered += 1
+        return response
+
+
+# ---------------------------------------------------------------------- building nodes in a context
+_building = threading.local()
+
+
+@contextmanager
+def _nodes_join(context: Context):
+    """While active, ``Node.__init__`` in this thread defaults to ``context``.
+
+    Student classes call ``super().__init__('name')`` without a context argument;
+    this lets the sandbox build them in its own context without changing their code.
+    """
+    previous = Node.__init__
+
+    def init(node, node_name, *args, **kwargs):
+        target = getattr(_building, "context", None)
+        if target is not None and kwargs.get("context") is None:
+            kwargs["context"] = target
+        previous(node, node_name, *args, **kwargs)
+
+    _building.context = context
+    Node.__init__ = init
+    try:
+        yield
+    finally:
+        _building.context = None
+        if Node.__init__ is init:
+            Node.__init__ = previous
+
+
+# ---------------------------------------------------------------------- the sandbox
+class IsolatedExecutor:
+    """Nodes in their own rclpy context and executor thread, torn down even if a callback hangs.
+
+    Use it as a context manager::
+
+        with IsolatedExecutor('single', namespace='/deadlock_demo') as box:
+            server = box.add(AdderServer)
+            caller = box.add(BlockingCaller)
+            box.wait_for(lambda: caller.answer is not None, timeout_s=2.0)
+
+    Every node gets ``namespace`` (a global remapping), so its services do not
+    clash with the notebook's own. On exit, any service call still waiting is
+    failed on purpose, which releases a callback stuck in ``client.call()``; then
+    the thread is joined and the context shut down.
+    """
+
+    def __init__(self, executor: str = "single", namespace: str = DEMO_NAMESPACE, threads: int = 4):
+        if executor not in EXECUTOR_KINDS:
+            raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
+        self.kind = executor
+        self.namespace = check_namespace(namespace)
+        self.threads = threads
+        self.errors: list[str] = []
+        self.nodes: list[Node] = []
+        self.context: Context | None = None
+        self.executor = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    def __enter__(self) -> IsolatedExecutor:
+        from course_helpers.core.runtime import get_runtime
+
+        domain_id = get_runtime().domain.domain_id  # same domain: the kernel can see these nodes
+        self.context = Context()
+        args = ["--ros-args", "--disable-stdout-logs", "-r", f"__ns:={self.namespace}"]
+        rclpy.init(args=args, context=self.context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        if self.kind == "single":
+            self.executor = SingleThreadedExecutor(context=self.context)
+        else:
+            self.executor = MultiThreadedExecutor(num_threads=self.threads, context=self.context)
+        self._thread = threading.Thread(target=self._spin, name="isolated-executor", daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        self.close()
+        return False
+
+    def add(self, node_class, *args, **kwargs) -> Node:
+        """Build ``node_class(*args, **kwargs)`` in this sandbox's context and spin it."""
+        if self.context is None:
+            raise CourseError("use IsolatedExecutor in a `with` block before adding nodes")
+        with _nodes_join(self.context):
+            node = node_class(*args, **kwargs)
+        if not isinstance(node, Node):
+            raise CourseError(f"{getattr(node_class, '__name__', node_class)!r} did not build an rclpy Node")
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def wait_for(self, predicate, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` for ``predicate()``; True if it became true."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            time.sleep(0.005)
+        return bool(predicate())
+
+    def release_waiting_calls(self) -> int:
+        """Cancel every service request a node of the sandbox is still waiting for; returns how many.
+
+        A callback blocked in ``client.call()`` then gets ``None`` back and finishes.
+        """
+        released = 0
+        for node in self.nodes:
+            for client in list(node.clients):
+                pending = getattr(client, "_pending_requests", {})
+                for future in list(pending.values()):
+                    future.cancel()
+                    released += 1
+        return released
+
+    def close(self) -> None:
+        """Release stuck calls, stop the threads, destroy the nodes and shut the context down."""
+        if self.context is None:
+            return
+        self._stop.set()
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline:  # a released callback may block again in another call
+            self.release_waiting_calls()
+            self._thread.join(timeout=0.05)
+            if not self._thread.is_alive() and not self._callbacks_running():
+                break
+        pool = getattr(self.executor, "_executor", None)  # the MultiThreadedExecutor's worker threads
+        if pool is not None:
+            pool.shutdown(wait=not self._callbacks_running())
+        for node in self.nodes:
+            self.executor.remove_node(node)
+        self.executor.shutdown(timeout_sec=1.0)
+        for node in self.nodes:
+            node.destroy_node()
+        self.nodes.clear()
+        self._collect_task_errors()
+        self.context.try_shutdown()
+        self.context = None
+
+    def _callbacks_running(self) -> bool:
+        return any(not task.done() for task in list(getattr(self.executor, "_futures", []) or []))
+
+    def _collect_task_errors(self) -> None:
+        """Read the errors of tasks left behind, so rclpy does not print them later at random.
+
+        A callback that was cut short by the teardown can end with an error nobody
+        asked for; rclpy prints such errors when the task is garbage-collected, which
+        would land in whatever cell runs then.
+        """
+        leftovers = list(getattr(self.executor, "_tasks", []) or []) + list(
+            getattr(self.executor, "_futures", []) or [])
+        for item in leftovers:
+            task = item[0] if isinstance(item, tuple) else item
+            if hasattr(task, "exception") and task.done() and task.exception() is not None:
+                self.errors.append(f"{type(task.exception()).__name__}: {task.exception()}")
+
+    def _spin(self) -> None:
+        while not self._stop.is_set() and self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception as error:  # a callback raised: remember it, keep spinning
+                if not self._stop.is_set():
+                    self.errors.append(f"{type(error).__name__}: {error}")
+
+
+# ---------------------------------------------------------------------- the deadlock demo
+@dataclass
+class DeadlockOutcome:
+    """What :func:`run_deadlock_demo` saw; ``str()`` gives a one-line verdict."""
+
+    caller: str
+    executor: str
+    completed: bool
+    answer: object
+    timeout_s: float
+    server_answered: int
+    errors: list[str] = field(default_factory=list)
+
+    @property
+    def deadlocked(self) -> bool:
+        return not self.completed
+
+    def __str__(self) -> str:
+        where = f"{self.caller} on a {self.executor}-threaded executor"
+        if self.completed:
+            return f"completed: {where} got its answer {self.answer!r}"
+        served = ("the server never even saw the request" if self.server_answered == 0 else
+                  "the server answered, but the reply was never taken")
+        return (f"deadlocked: the call did not return within {self.timeout_s:g} s "
+                f"({where}; {served})")
+
+    def _repr_pretty_(self, printer, cycle):
+        printer.text(str(self))
+
+
+def run_deadlock_demo(caller_class, executor: str = "single", timeout_s: float = 2.0,
+                      answer_attribute: str = "answer") -> DeadlockOutcome:
+    """Run ``caller_class`` next to an :class:`AdderServer` on a separate executor and report.
+
+    The caller is a Node class that calls ``add_two_ints`` from one of its callbacks
+    and stores the sum in ``self.answer``. Both nodes run in a sandbox (their own
+    context, ``executor='single'`` or ``'multi'``, namespace ``/deadlock_demo``). If
+    ``answer`` is still None after ``timeout_s`` seconds, the call deadlocked; the
+    sandbox is then unblocked and destroyed, and the kernel's runtime is untouched.
+    """
+    if executor not in EXECUTOR_KINDS:
+        raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
+    if not isinstance(timeout_s, (int, float)) or not 0.1 <= timeout_s <= 30:
+        raise CourseError(f"timeout_s must be a number of seconds from 0.1 to 30, got {timeout_s!r}")
+    name = getattr(caller_class, "__name__", str(caller_class))
+    with IsolatedExecutor(executor) as box:
+        server = box.add(AdderServer)
+        caller = box.add(caller_class)
+        completed = box.wait_for(lambda: getattr(caller, answer_attribute, None) is not None, timeout_s)
+        answer = getattr(caller, answer_attribute, None)
+        answered = server.answered
+    return DeadlockOutcome(name, executor, completed, answer, timeout_s, answered, list(box.errors))
+
+
+# ---------------------------------------------------------------------- topics vs services
+class LatencyEcho(Node):
+    """Echoes ``latency/ping`` to ``latency/pong`` and answers ``latency/add_two_ints`` (child process)."""
+
+    def __init__(self, name: str = "latency_echo"):
+        super().__init__(name)
+        self.pong = self.create_publisher(Int64, "latency/pong", 10)
+        self.ping = self.create_subscription(Int64, "latency/ping", self.pong.publish, 10)
+        self.adder = self.create_service(_add_two_ints_type(), "latency/add_two_ints", self.on_add)
+
+    def on_add(self, request, response):
+        response.sum = request.a + request.b
+        return response
+
+
+def make_latency_echo(name: str = "latency_echo") -> LatencyEcho:
+    """Child-process target: ``'course_helpers.chapters.ch04_services:make_latency_echo'``."""
+    return LatencyEcho(name)
+
+
+LATENCY_KINDS = {
+    "publish": "topic: publish() returns",
+    "topic_round_trip": "topic: ping -> pong round trip",
+    "service_round_trip": "service: request -> response",
+}
+
+
+@dataclass
+class RoundTrips:
+    """Samples in seconds per kind (see ``LATENCY_KINDS``), measured by :func:`measure_round_trips`."""
+
+    samples: dict[str, list[float]]
+
+    def median_us(self, kind: str) -> float:
+        """Median of one kind in microseconds."""
+        if kind not in self.samples:
+            raise CourseError(f"kind must be one of {', '.join(self.samples)}, got {kind!r}")
+        return statistics.median(self.samples[kind]) * 1e6
+
+    def table(self) -> str:
+        """Medians as an aligned text table (varies run to run: print it in an ignored cell)."""
+        return "\n".join(f"{LATENCY_KINDS[k]:<40} median {self.median_us(k):8.1f} us"
+                         for k in self.samples)
+
+
+def measure_round_trips(rt=None, samples: int = 200, timeout_s: float = 1.0) -> RoundTrips:
+    """Time topics against a service, with the echo node in a child process.
+
+    For each sample, the notebook side (a probe node in the kernel) publishes one
+    message on ``latency/ping`` and waits for the echo on ``latency/pong``, then
+    calls ``latency/add_two_ints`` and waits for the response. Recorded: how long
+    ``publish()`` blocked the caller, the topic round trip (ping out, pong back) and
+    the service round trip (request out, response back). The child process and the
+    probe are removed afterwards.
+    """
+    from course_helpers.core.runtime import get_runtime
+
+    if isinstance(samples, bool) or not isinstance(samples, int) or not 10 <= samples <= 5000:
+        raise CourseError(f"samples must be a whole number from 10 to 5000, got {samples!r}")
+    rt = rt or get_runtime()
+    add_two_ints = _add_two_ints_type()
+    rt.spawn("latency_echo", "course_helpers.chapters.ch04_services:make_latency_echo", wait_for="/latency_echo")
+    probe = rt.node("latency_probe")
+    try:
+        pong_seen = threading.Event()
+        ping = probe.create_publisher(Int64, "latency/ping", 10)
+        probe.create_subscription(Int64, "latency/pong", lambda _msg: pong_seen.set(), 10)
+        client = probe.create_client(add_two_ints, "latency/add_two_ints")
+        rt.wait_until(lambda: ping.get_subscription_count() >= 1 and client.service_is_ready(), 10,
+                      "the echo node's ping subscription and service")
+        time.sleep(0.2)  # let discovery settle before timing
+        result = {kind: [] for kind in LATENCY_KINDS}
+        for seq in range(samples):
+            pong_seen.clear()
+            start = time.perf_counter()
+            ping.publish(Int64(data=seq))
+            published = time.perf_counter()
+            if not pong_seen.wait(timeout_s):
+                raise WaitTimeout(f"no pong within {timeout_s:g} s for ping {seq}")
+            echoed = time.perf_counter()
+            result["publish"].append(published - start)
+            result["topic_round_trip"].append(echoed - start)
+            start = time.perf_counter()
+            rt.wait_for_future(client.call_async(add_two_ints.Request(a=seq, b=1)), timeout_s,
+                               f"the service response to request {seq}")
+            result["service_round_trip"].append(time.perf_counter() - start)
+    finally:
+        rt.remove(probe)
+        rt.stop_child("latency_echo")
+    return RoundTrips(result)
+
+
+def plot_round_trips(trips: RoundTrips):
+    """Box plot (log scale, microseconds) of the three kinds of :class:`RoundTrips`; returns the Figure."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    kinds = list(trips.samples)
+    data = [[s * 1e6 for s in trips.samples[k]] for k in kinds]
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    colours = ["#94a3b8", "#2563eb", "#f97316"]
+    box = ax.boxplot(data, vert=False, patch_artist=True, showfliers=False, widths=0.6,
+                     medianprops={"color": "black", "linewidth": 1.5})
+    for patch, colour in zip(box["boxes"], colours, strict=False):
+        patch.set_facecolor(colour)
+    ax.set_yticks(range(1, len(kinds) + 1), [LATENCY_KINDS[k] for k in kinds])
+    ax.set_xscale("log")
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _pos: f"{value:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("time the caller waits [µs], log scale")
+    ax.invert_yaxis()
+    ax.grid(axis="x", which="both", alpha=0.3)
+    right_ends = []
+    for row, values in enumerate(data, start=1):
+        whisker_end = max(box["whiskers"][2 * row - 1].get_xdata())
+        right_ends.append(whisker_end)
+        ax.annotate(f"median {statistics.median(values):.0f} µs", (whisker_end, row), xytext=(6, 0),
+                    textcoords="offset points", va="center", fontsize=9)
+    ax.set_xlim(right=max(right_ends) * 6)
+    ax.set_title(f"Topic vs service: what the caller waits for ({len(data[0])} samples each)",
+                 fontsize=10)
+    fig.tight_layout()
+    return fig

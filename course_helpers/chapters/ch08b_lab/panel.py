@@ -1,0 +1,407 @@
+"""The QoS lab panel (chapter 08, notebook ``08b_qos_lab``): widgets over ``run_experiment``.
+
+``lab = qos_lab()`` shows a panel: the QoS of both ends (reliability, durability,
+history, depth), the load (rate, payload size, the subscriber's processing time,
+transport, duration, late joiner), Run / Stop / Compare buttons, one-click preset
+scenarios, a plot that follows a run live and a results table that gains one row
+per run. The measuring is done by :func:`course_helpers.chapters.ch08b_lab.engine.run_experiment`
+in a background thread, so the notebook's other cells keep running meanwhile; the
+plot is drawn by :class:`course_helpers.chapters.ch08b_lab.plots.ResultsFigure`.
+
+Settings the engine would refuse are prevented (depth is disabled with KEEP_ALL,
+sliders are bounded) or explained in the panel, never shown as a traceback.
+Running the cell again closes the previous panel and its experiment first.
+"""
+
+from __future__ import annotations
+
+import html
+import threading
+import time
+
+import ipywidgets as widgets
+
+from course_helpers.chapters.ch08b_lab import engine as experiments
+from course_helpers.chapters.ch08b_lab.engine import ExperimentConfig, ExperimentResult
+from course_helpers.chapters.ch08b_lab.plots import ResultsFigure
+from course_helpers.core.errors import CourseError
+
+RATES_HZ = (1, 2, 5, 10, 20, 50, 100, 200, 400, 500, 1000, 2000, 5000)
+PAYLOADS = (16, 256, 1024, 4096, 16384, 65536, 262144, 2**20, 2 * 2**20, 4 * 2**20)
+MAX_FRAME_HZ = 8.0  # the live plot redraws at most this often
+_ROW_COLUMNS = (("#", None), ("run", "run"), ("sent", "published"), ("delivered", "delivered"),
+                ("lost (gaps)", "lost_seq"), ("lost (events)", "lost_events"), ("in flight", "in_flight"),
+                ("publish errors", "publish_errors"), ("p50 ms", "p50_ms"), ("p99 ms", "p99_ms"),
+                ("loopback MB", "loopback_mb"), ("note", "note"))
+
+_active: QoSLab | None = None
+
+
+def qos_lab() -> QoSLab:
+    """Show a new lab panel, closing the one a previous run of the cell made."""
+    global _active
+    if _active is not None:
+        _active.close()
+    _active = QoSLab()
+    return _active
+
+
+class QoSLab:
+    """The panel. ``lab.results`` holds every finished :class:`ExperimentResult`."""
+
+    def __init__(self):
+        self.results: list[ExperimentResult] = []
+        self.config_b: ExperimentConfig | None = None
+        self.frame_hz: float | None = None  # live-plot refresh rate of the last run
+        self.frame_seconds = 0.0  # how long the last frame took to draw
+        self._thread: threading.Thread | None = None
+        self._busy = False
+        self._stop = threading.Event()
+        self._figure = ResultsFigure()
+        self._last_frame = 0.0
+        self._build()
+        self._validate(announce=True)
+        self._show_frame([])
+
+    # ------------------------------------------------------------------ layout
+    def _build(self) -> None:
+        w = widgets
+        wide = w.Layout(width="330px")
+        style = {"description_width": "110px"}
+        self.reliability = w.ToggleButtons(options=[("reliable", "reliable"), ("best effort", "best_effort")],
+                                           description="reliability", style=style)
+        self.durability = w.ToggleButtons(options=[("volatile", "volatile"),
+                                                   ("transient local", "transient_local")],
+                                          description="durability", style=style)
+        self.history = w.ToggleButtons(options=[("keep last", "keep_last"), ("keep all", "keep_all")],
+                                       description="history", style=style)
+        self.depth = w.BoundedIntText(value=10, min=1, max=experiments.MAX_DEPTH, description="depth",
+                                      style=style, layout=w.Layout(width="200px"))
+        self.rate = w.SelectionSlider(options=[(f"{r} Hz", r) for r in RATES_HZ], value=100,
+                                      description="rate", style=style, layout=wide)
+        self.payload = w.SelectionSlider(options=[(experiments.format_bytes(b), b) for b in PAYLOADS],
+                                         value=1024, description="payload", style=style, layout=wide)
+        self.processing = w.FloatSlider(value=0.0, min=0.0, max=experiments.MAX_PROCESSING_MS, step=1.0,
+                                        description="processing (ms)", readout_format=".0f",
+                                        style=style, layout=wide)
+        self.transport = w.ToggleButtons(options=[("shared memory", "shm"), ("UDP", "udp")],
+                                         description="transport", style=style)
+        self.duration = w.FloatSlider(value=1.0, min=0.1, max=10.0, step=0.05, description="duration (s)",
+                                      readout_format=".2f", style=style, layout=wide)
+        self.late_joiner = w.Checkbox(value=False, description="late joiner (subscribe after sending)",
+                                      indent=False)
+        for control in (self.reliability, self.durability, self.history, self.transport):
+            control.style.button_width = "125px"
+
+        self.run_button = w.Button(description="Run", button_style="primary", icon="play")
+        self.stop_button = w.Button(description="Stop", button_style="danger", icon="stop", disabled=True)
+        self.compare_button = w.Button(description="Compare", button_style="info", icon="columns",
+                                       tooltip="run configuration B, then the panel's settings, and "
+                                               "overlay them", disabled=True)
+        self.keep_b_button = w.Button(description="Keep as B", icon="bookmark",
+                                      tooltip="remember the panel's settings as configuration B")
+        self.clear_button = w.Button(description="Clear table", icon="trash")
+        self.run_button.on_click(self._guard(self._on_run))
+        self.stop_button.on_click(self._guard(self._on_stop))
+        self.compare_button.on_click(self._guard(self._on_compare))
+        self.keep_b_button.on_click(self._guard(self._on_keep_b))
+        self.clear_button.on_click(self._guard(self._on_clear))
+
+        self.preset_buttons = []
+        for name, entry in experiments.PRESETS.items():
+            button = w.Button(description=name, tooltip=entry["what"], layout=w.Layout(width="auto"))
+            button.on_click(self._guard(lambda _b, name=name: self._load_preset(name)))
+            self.preset_buttons.append(button)
+
+        self.b_label = w.HTML()
+        self.status = w.HTML()
+        self.image = w.Image(format="png", layout=w.Layout(width="100%", max_width="980px"))
+        self.table = w.HTML()
+        for control in self._config_controls():
+            control.observe(self._guard(lambda _change: self._validate(announce=True)), names="value")
+        self._refresh_b_label()
+        self._refresh_table()
+
+        title = w.HTML("<b>QoS lab</b>: the publisher runs in a child process, the subscriber in this "
+                       "kernel; samples cross a real Fast DDS transport. Nothing is simulated.")
+        qos_box = w.VBox([w.HTML("<b>QoS</b> (both ends)"), self.reliability, self.durability,
+                          self.history, self.depth])
+        load_box = w.VBox([w.HTML("<b>Load</b>"), self.rate, self.payload, self.processing,
+                           self.duration, self.transport, self.late_joiner])
+        self.widget = w.VBox([
+            title,
+            w.HBox([w.HTML("presets:"), *self.preset_buttons], layout=w.Layout(flex_flow="row wrap")),
+            w.HBox([qos_box, load_box], layout=w.Layout(grid_gap="24px")),
+            w.HBox([self.run_button, self.stop_button, self.compare_button, self.keep_b_button,
+                    self.clear_button]),
+            self.b_label, self.status, self.image, self.table,
+        ])
+        self.widget.add_class("qos-lab")
+
+    def _config_controls(self):
+        return (self.reliability, self.durability, self.history, self.depth, self.rate, self.payload,
+                self.processing, self.transport, self.duration, self.late_joiner)
+
+    def _ipython_display_(self):
+        from IPython.display import display
+
+        display(self.widget)
+
+    # ------------------------------------------------------------------ configuration
+    def config(self) -> ExperimentConfig:
+        """The panel's settings as an :class:`ExperimentConfig` (raises CourseError if not allowed)."""
+        keep_all = self.history.value == "keep_all"
+        return ExperimentConfig(
+            reliability=self.reliability.value, durability=self.durability.value,
+            history=self.history.value, depth=None if keep_all else int(self.depth.value),
+            rate_hz=float(self.rate.value), payload_bytes=int(self.payload.value),
+            processing_ms=float(self.processing.value), transport=self.transport.value,
+            duration_s=round(float(self.duration.value), 3), late_joiner=bool(self.late_joiner.value))
+
+    def set_config(self, config: ExperimentConfig) -> None:
+        """Put ``config`` into the panel's widgets."""
+        self.reliability.value = config.reliability
+        self.durability.value = config.durability
+        self.history.value = config.history
+        if config.depth is not None:
+            self.depth.value = config.depth
+        self.rate.value = min(RATES_HZ, key=lambda r: abs(r - config.rate_hz))
+        self.payload.value = min(PAYLOADS, key=lambda b: abs(b - config.payload_bytes))
+        self.processing.value = config.processing_ms
+        self.transport.value = config.transport
+        self.duration.value = config.duration_s
+        self.late_joiner.value = config.late_joiner
+
+    def _validate(self, announce: bool = False) -> ExperimentConfig | None:
+        """Enable what makes sense for the current settings; explain what does not.
+
+        ``announce`` also writes 'Ready: ...' in the status line.
+        """
+        self.depth.disabled = self.history.value == "keep_all"
+        self.depth.description = "depth (unused)" if self.depth.disabled else "depth"
+        busy = self.running
+        try:
+            config = self.config()
+        except CourseError as error:
+            self.run_button.disabled = self.compare_button.disabled = True
+            self.keep_b_button.disabled = True
+            self._set_status(f"These settings cannot run: {error}", "warning")
+            return None
+        self.run_button.disabled = busy
+        self.compare_button.disabled = busy or self.config_b is None
+        self.keep_b_button.disabled = False
+        if announce and not busy:
+            self._set_status(f"Ready: {html.escape(config.describe())} "
+                             f"({config.count} samples).", "info", escape=False)
+        return config
+
+    # ------------------------------------------------------------------ buttons
+    def _guard(self, handler):
+        """Wrap a widget callback so an error shows in the panel, not as a traceback."""
+        def call(*args):
+            try:
+                handler(*args)
+            except CourseError as error:
+                self._set_status(str(error), "warning")
+            except Exception as error:  # a widget callback must never print a traceback
+                self._set_status(f"{type(error).__name__}: {error}", "error")
+        return call
+
+    def _on_run(self, _button=None) -> None:
+        config = self._validate()
+        if config is not None:
+            self.start([config])
+
+    def _on_compare(self, _button=None) -> None:
+        config = self._validate()
+        if config is None:
+            return
+        if self.config_b is None:
+            self._set_status("No configuration B yet: load a two-run preset, or press 'Keep as B'.",
+                             "warning")
+            return
+        self.start([self.config_b, config])
+
+    def _on_stop(self, _button=None) -> None:
+        self._stop.set()
+        self._set_status("Stopping...", "info")
+
+    def _on_keep_b(self, _button=None) -> None:
+        config = self._validate()
+        if config is not None:
+            self.config_b = config
+            self._refresh_b_label()
+            self._validate()
+            self._set_status(f"Kept as B: {config.describe()}. Change the panel, then press Compare.", "info")
+
+    def _on_clear(self, _button=None) -> None:
+        self.results.clear()
+        self._refresh_table()
+
+    def _load_preset(self, name: str) -> None:
+        if self.running:
+            self._set_status("Stop the running experiment before loading a preset.", "warning")
+            return
+        configs = experiments.preset(name)
+        self.config_b = configs[0] if len(configs) == 2 else None
+        self._refresh_b_label()
+        self.set_config(configs[-1])
+        self._validate()
+        what = html.escape(experiments.PRESETS[name]["what"])
+        action = "Press <b>Compare</b> to run B, then the panel." if self.config_b else "Press <b>Run</b>."
+        self._set_status(f"Preset <b>{html.escape(name)}</b>: {what} {action}", "info", escape=False)
+
+    # ------------------------------------------------------------------ running
+    @property
+    def running(self) -> bool:
+        """True while an experiment runs."""
+        return self._busy
+
+    def start(self, configs: list[ExperimentConfig]) -> None:
+        """Run ``configs`` one after the other in a background thread (what Run and Compare do)."""
+        if self.running:
+            raise CourseError("an experiment is already running: press Stop first")
+        self._stop = threading.Event()
+        self._busy = True
+        self._thread = threading.Thread(target=self._work, args=(list(configs), self._stop),
+                                        name="qos-lab", daemon=True)
+        self.run_button.disabled = self.compare_button.disabled = True
+        self.stop_button.disabled = False
+        for button in self.preset_buttons:
+            button.disabled = True
+        self._thread.start()
+
+    def wait(self, timeout: float = 60.0) -> bool:
+        """Wait until the running experiment ends; True if it did."""
+        if self._thread is not None:
+            self._thread.join(timeout)
+        return not (self._thread is not None and self._thread.is_alive())
+
+    def _work(self, configs, stop: threading.Event) -> None:
+        finished: list[ExperimentResult] = []
+        frames: list[list[float]] = []  # per run: when each live frame was shown
+        try:
+            for number, config in enumerate(configs, 1):
+                if stop.is_set():
+                    break
+                label = config.describe()
+                self._set_status(f"Running {number}/{len(configs)}: {html.escape(label)} ... "
+                                 "(the publisher's process starts, then the samples flow)", "info",
+                                 escape=False)
+                live: list = []
+                frames.append([])
+                expect = (config.duration_s * 1.2 + 0.5, config.count)  # axes sized for the whole run
+
+                def progress(snap, live=live, label=label, shown=frames[-1], number=number, expect=expect):
+                    live.append(snap)
+                    if self._show_frame([*finished, (label, live)], expect=expect):
+                        shown.append(time.monotonic())
+                        self._set_status(
+                            f"Running {number}/{len(configs)}: {label} | {snap.t:.1f} s: {snap.published} "
+                            f"sent, {snap.delivered} delivered, lost {snap.lost_by_sequence} (gaps) / "
+                            f"{snap.lost_events} (events), {snap.publish_errors} publish errors", "info")
+
+                result = experiments.run_experiment(config, progress=progress, stop_event=stop,
+                                                    progress_period_s=0.02)
+                finished.append(result)
+                self.results.append(result)
+                self._refresh_table()
+                self._show_frame(finished, force=True)
+            self.frame_hz = _frame_rate(frames)
+            lines = "<br>".join(html.escape(r.summary()) for r in finished)
+            word = "Stopped" if stop.is_set() else "Done"
+            self._set_status(f"{word}. {lines}", "info", escape=False)
+        except CourseError as error:
+            self._set_status(str(error), "warning")
+        except Exception as error:  # shown in the panel; the kernel and the panel keep working
+            self._set_status(f"The experiment failed: {type(error).__name__}: {error}", "error")
+        finally:
+            self._busy = False
+            self.stop_button.disabled = True
+            for button in self.preset_buttons:
+                button.disabled = False
+            self._validate()
+
+    def close(self) -> None:
+        """Stop a running experiment (its child process ends) and close the widgets."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        for child in _all_widgets(self.widget):
+            child.close()
+
+    # ------------------------------------------------------------------ display
+    def _show_frame(self, runs, force: bool = False, expect=None) -> bool:
+        """Draw a live frame (at most MAX_FRAME_HZ a second); ``force``: a final frame, fitted."""
+        now = time.monotonic()
+        if not force and now - self._last_frame < 1.0 / MAX_FRAME_HZ:
+            return False
+        self._last_frame = now
+        self.image.value = self._figure.frame(runs, fit=force, expect=expect)
+        self.frame_seconds = time.monotonic() - now
+        return True
+
+    def _set_status(self, text: str, kind: str, escape: bool = True) -> None:
+        colour = {"info": "#1f4e79", "warning": "#8a5a00", "error": "#a11"}[kind]
+        body = html.escape(text) if escape else text
+        self.status.value = f'<div class="qos-lab-status" style="color:{colour}">{body}</div>'
+
+    def _refresh_b_label(self) -> None:
+        text = html.escape(self.config_b.describe()) if self.config_b else "none yet"
+        self.b_label.value = f"<small>Configuration B (for Compare): {text}</small>"
+
+    def _refresh_table(self) -> None:
+        self.table.value = results_table_html(self.results)
+
+
+_TH = ('style="padding:2px 6px;border-bottom:1px solid #999;text-align:{align};vertical-align:bottom;'
+       'white-space:nowrap"')
+_TD = 'style="padding:2px 6px;border-bottom:1px solid #ddd;text-align:{align}"'
+
+
+def results_table_html(results: list[ExperimentResult]) -> str:
+    """The results table as HTML: one row per run, oldest first."""
+    def align(key):
+        return "left" if key in ("run", "note") else "right"
+
+    head = "".join(f"<th {_TH.format(align=align(key))}>{html.escape(name)}</th>"
+                   for name, key in _ROW_COLUMNS)
+    rows = []
+    for number, result in enumerate(results, 1):
+        row = result.as_row()
+        row["note"] = _note(result)
+        cells = [(str(number), None)] + [(_cell(row.get(key)), key) for _name, key in _ROW_COLUMNS[1:]]
+        rows.append("<tr>" + "".join(f"<td {_TD.format(align=align(key))}>{html.escape(text)}</td>"
+                                     for text, key in cells) + "</tr>")
+    if not rows:
+        rows.append(f'<tr><td colspan="{len(_ROW_COLUMNS)}" style="padding:4px 6px"><i>no runs yet: each '
+                    "run adds a row here</i></td></tr>")
+    return ('<table class="qos-lab-results" style="font-size:12px;border-collapse:collapse;margin-top:4px">'
+            f"<thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>")
+
+
+def _frame_rate(frames: list[list[float]]) -> float | None:
+    """Frames per second while runs were in progress (the gaps between runs left out)."""
+    count = sum(len(times) - 1 for times in frames if len(times) > 1)
+    span = sum(times[-1] - times[0] for times in frames if len(times) > 1)
+    return count / span if span > 0 else None
+
+
+def _cell(value) -> str:
+    return "" if value is None else str(value)
+
+
+def _note(result: ExperimentResult) -> str:
+    if result.stopped:
+        return "stopped"
+    if result.config.late_joiner:
+        return f"late joiner got {result.delivered} old samples"
+    if result.delivered == result.published and result.lost_nothing and not result.in_flight:
+        return "nothing lost"
+    return ""
+
+
+def _all_widgets(widget):
+    yield widget
+    for child in getattr(widget, "children", ()):
+        yield from _all_widgets(child)

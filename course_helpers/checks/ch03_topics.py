@@ -1,0 +1,387 @@
+"""Checkers of chapter 03 (topics): each runs the student's code against real nodes.
+
+* :func:`check_tilt_warning` - a node class that warns on ``/safety/tilt_warning`` when the IMU
+  on ``/imu`` tilts more than 15°; the checker publishes scripted attitudes.
+* :func:`check_cmd_vel_logger` - a node class ``Logger(csv_path)`` that writes ``/cmd_vel`` to a
+  CSV file; the checker publishes known Twists and reads the file back.
+* :func:`check_throughput` - ``expected_load`` (computed) and ``measure_load`` (measured) for
+  10 IMUs at 100 Hz, compared with what the sensors really sent.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import shutil
+import tempfile
+import time
+from itertools import pairwise
+
+from geometry_msgs.msg import Twist
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
+
+from course_helpers.chapters.ch03_topics import imu_message, message_size, sensor_topics, sent_count
+from course_helpers.checks import CheckReport
+
+TILT_THRESHOLD_DEG = 15.0
+# (roll, pitch, yaw) in degrees, and whether the attitude is tilted by more than 15°
+TILT_CASES = [
+    ((0, 0, 0), False),
+    ((10, 0, 0), False),
+    ((0, 10, 0), False),
+    ((0, -14, 0), False),
+    ((0, 0, 90), False),
+    ((20, 0, 0), True),
+    ((30, 0, 0), True),
+    ((0, 20, 0), True),
+    ((0, -30, 0), True),
+    ((12, 12, 0), True),
+]
+CSV_COLUMNS = ["time_s", "linear_x", "linear_y", "linear_z", "angular_x", "angular_y", "angular_z"]
+SENSOR_COUNT, SENSOR_RATE_HZ = 10, 100.0
+
+
+def _tilt_of(roll: float, pitch: float) -> float:
+    """The tilt (degrees) of a roll-then-pitch attitude: acos(cos(roll)·cos(pitch))."""
+    return math.degrees(math.acos(math.cos(math.radians(roll)) * math.cos(math.radians(pitch))))
+
+
+def _node_name(node) -> str:
+    return node.get_fully_qualified_name()
+
+
+def _endpoint_types(rt, topic: str, node, publishers: bool) -> list[str]:
+    infos = (rt.graph.get_publishers_info_by_topic(topic) if publishers
+             else rt.graph.get_subscriptions_info_by_topic(topic))
+    name, namespace = node.get_name(), node.get_namespace()
+    return [i.topic_type for i in infos if i.node_name == name and i.node_namespace == namespace]
+
+
+def _wait_for_endpoint(rt, topic, node, publishers, timeout=2.0) -> list[str]:
+    deadline = time.monotonic() + timeout
+    while True:
+        types = _endpoint_types(rt, topic, node, publishers)
+        if types or time.monotonic() > deadline:
+            return types
+        time.sleep(0.02)
+
+
+def _types_detail(types: list[str], wanted: str) -> str:
+    """Empty when exactly the wanted type was found, else what was found."""
+    if len(types) == 1 and types[0].endswith("/" + wanted):
+        return ""
+    return f"found: {', '.join(types)}" if types else "none found in the graph"
+
+
+def _other_publishers(rt, topic: str, allowed: set[str]) -> list[str]:
+    """Full names of the nodes publishing on ``topic`` other than those in ``allowed``."""
+    names = {(i.node_namespace.rstrip("/") + "/" + i.node_name)
+             for i in rt.graph.get_publishers_info_by_topic(topic)}
+    return sorted(names - allowed)
+
+
+def _no_intruders(report: CheckReport, rt, topics: list[str], allowed: set[str]) -> bool:
+    """A criterion: nobody but the checker and the student's node publishes on ``topics``."""
+    others = sorted({n for t in topics for n in _other_publishers(rt, t, allowed)})
+    return report.add(f"no other node publishes on {' or '.join(topics)}", not others,
+                      f"also published by {', '.join(others)}" if others else "",
+                      hint="Their messages would mix with the checker's. Stop them first, e.g. "
+                           "rt.remove('/imu_driver') for a node of this kernel or "
+                           "rt.stop_child(label) for a child process, then check again.")
+
+
+def _new_errors(rt, before: int) -> list[str]:
+    return rt.errors[before:]
+
+
+def _start_student_node(report: CheckReport, rt, node_class, *args):
+    return report.run("the node starts", lambda: rt.add(node_class, *args),
+                      hint="Run the class cell first; its __init__ must call super().__init__(name) "
+                           "and take exactly the arguments the exercise gives.")
+
+
+# ---------------------------------------------------------------------- exercise 1
+def check_tilt_warning(node_class, rt=None) -> CheckReport:
+    """Check a tilt-warning node class: warnings on /safety/tilt_warning exactly when tilt > 15°."""
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 1: IMU tilt warning")
+    errors_before = len(rt.errors)
+    node = _start_student_node(report, rt, node_class)
+    if node is None:
+        return report
+    report.add("the node starts", True, _node_name(node))
+    probe = None
+    try:
+        _wait_for_endpoint(rt, "/imu", node, publishers=False)
+        sub_types = _endpoint_types(rt, "/imu", node, publishers=False)
+        pub_types = _wait_for_endpoint(rt, "/safety/tilt_warning", node, publishers=True,
+                                       timeout=0.5 if not sub_types else 2.0)
+        subscribes = report.add("subscribes to /imu with type sensor_msgs/msg/Imu",
+                                sub_types == ["sensor_msgs/msg/Imu"], _types_detail(sub_types, "Imu"),
+                                hint="self.create_subscription(Imu, '/imu', self.on_imu, 10) with "
+                                     "from sensor_msgs.msg import Imu")
+        publishes = report.add("publishes on /safety/tilt_warning with type std_msgs/msg/String",
+                               pub_types == ["std_msgs/msg/String"], _types_detail(pub_types, "String"),
+                               hint="self.create_publisher(String, '/safety/tilt_warning', 10) with "
+                                    "from std_msgs.msg import String")
+        if not (subscribes and publishes):
+            report.add("scripted attitudes", False, "not run: the node must subscribe and publish first",
+                       hint="Fix the two criteria above, then check again.")
+            return report
+        # One process cannot use a topic name with two types, so the probe comes after the type check.
+        probe = rt.node("tilt_checker", console=False)
+        warnings: list[str] = []
+        imu_pub = probe.create_publisher(Imu, "/imu", 10)
+        probe.create_subscription(String, "/safety/tilt_warning", lambda m: warnings.append(m.data), 10)
+        rt.wait_until(lambda: imu_pub.get_subscription_count() >= 1, 5, "the node's /imu subscription")
+        if not _no_intruders(report, rt, ["/imu", "/safety/tilt_warning"],
+                             {_node_name(probe), _node_name(node)}):
+            return report
+        for (roll, pitch, yaw), tilted in TILT_CASES:
+            _run_tilt_case(report, rt, imu_pub, warnings, roll, pitch, yaw, tilted)
+        errors = _new_errors(rt, errors_before)
+        report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
+                   hint="Read the traceback in the node's console under this cell.")
+    finally:
+        rt.remove(node)
+        if probe is not None:
+            rt.remove(probe)
+    return report
+
+
+def _run_tilt_case(report, rt, publisher, warnings, roll, pitch, yaw, tilted) -> None:
+    warnings.clear()
+    msg = imu_message(roll, pitch, yaw)
+    msg.header.stamp = rt.graph.get_clock().now().to_msg()
+    publisher.publish(msg)
+    tilt = _tilt_of(roll, pitch)
+    label = f"roll {roll:>3}°, pitch {pitch:>3}°, yaw {yaw:>2}° (tilt {tilt:4.1f}°)"
+    if tilted:
+        try:
+            rt.wait_until(lambda: warnings, 2.0, "a warning")
+        except TimeoutError:
+            pass
+        hint = ("Tilt is the angle between the robot's up axis and the vertical: "
+                "cos(tilt) = 1 - 2(x² + y²) for the orientation quaternion (x, y, z, w). "
+                "Both roll and pitch count; combine them, do not take only the larger one.")
+        report.add(f"{label}: warning", bool(warnings), "" if warnings else "no warning within 2 s", hint)
+    else:
+        time.sleep(0.3)
+        hint = ("Warn only above 15°; yaw (turning on the spot) is not tilt, so do not use the "
+                "full rotation angle of the quaternion.")
+        report.add(f"{label}: no warning", not warnings,
+                   f"got {warnings[0]!r}" if warnings else "", hint)
+
+
+# ---------------------------------------------------------------------- exercise 2
+CSV_TWISTS = [  # (linear x, y, z, angular x, y, z): every column different, so swaps show
+    (0.5, 0.0, 0.0, 0.0, 0.0, 0.1),
+    (0.25, -0.125, 0.0, 0.0, 0.0, -0.5),
+    (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    (-0.3, 0.2, 0.05, 0.01, -0.02, 1.5),
+    (1.0, 0.5, -0.25, 0.125, 0.0625, -1.25),
+]
+
+
+def check_cmd_vel_logger(node_class, rt=None) -> CheckReport:
+    """Check a /cmd_vel CSV logger: header, one flushed row per Twist, values in the right columns."""
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 2: CSV logger of /cmd_vel")
+    folder = tempfile.mkdtemp(prefix="cmd-vel-check-")
+    path = os.path.join(folder, "cmd_vel.csv")
+    errors_before = len(rt.errors)
+    node = _start_student_node(report, rt, node_class, path)
+    if node is None:
+        shutil.rmtree(folder, ignore_errors=True)
+        return report
+    report.add("the node starts", True, f"{_node_name(node)} writing {os.path.basename(path)}")
+    probe = None
+    try:
+        sub_types = _wait_for_endpoint(rt, "/cmd_vel", node, publishers=False)
+        if not report.add("subscribes to /cmd_vel with type geometry_msgs/msg/Twist",
+                          sub_types == ["geometry_msgs/msg/Twist"], _types_detail(sub_types, "Twist"),
+                          hint="self.create_subscription(Twist, '/cmd_vel', self.on_twist, 10)"):
+            return report
+        probe = rt.node("cmd_vel_checker", console=False)
+        publisher = probe.create_publisher(Twist, "/cmd_vel", 10)
+        rt.wait_until(lambda: publisher.get_subscription_count() >= 1, 5, "the logger's subscription")
+        if not _no_intruders(report, rt, ["/cmd_vel"], {_node_name(probe)}):
+            return report
+        started = time.time()
+        for values in CSV_TWISTS:
+            publisher.publish(_twist(*values))
+            time.sleep(0.02)
+        expected_lines = 1 + len(CSV_TWISTS)
+        try:
+            rt.wait_until(lambda: len(_read_lines(path)) >= expected_lines, 3.0, "the CSV rows")
+        except TimeoutError:
+            pass
+        lines = _read_lines(path)
+        report.add("rows are on disk while the node runs", len(lines) >= expected_lines,
+                   f"{len(lines)} line(s) in the file after 5 messages",
+                   hint="Call self.file.flush() after each writerow(), or the rows wait in a "
+                        "buffer and a crash loses them.")
+        _check_csv_content(report, lines, started)
+        errors = _new_errors(rt, errors_before)
+        report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
+                   hint="Read the traceback in the node's console under this cell.")
+    finally:
+        rt.remove(node)
+        if probe is not None:
+            rt.remove(probe)
+        shutil.rmtree(folder, ignore_errors=True)
+    return report
+
+
+def _twist(lx, ly, lz, ax, ay, az) -> Twist:
+    msg = Twist()
+    msg.linear.x, msg.linear.y, msg.linear.z = lx, ly, lz
+    msg.angular.x, msg.angular.y, msg.angular.z = ax, ay, az
+    return msg
+
+
+def _read_lines(path: str) -> list[list[str]]:
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            return [row for row in csv.reader(handle) if row]
+    except OSError:
+        return []
+
+
+def _check_csv_content(report: CheckReport, lines: list[list[str]], started: float) -> None:
+    header = lines[0] if lines else []
+    header_ok = report.add("header row is " + ",".join(CSV_COLUMNS), header == CSV_COLUMNS,
+                           "" if header == CSV_COLUMNS else f"got {','.join(header) or 'nothing'}",
+                           hint="Write the header once, in __init__, before any message arrives.")
+    if lines and not header_ok and _is_number_row(lines[0]):
+        rows = lines  # no header at all: every line is data
+    else:
+        rows = lines[1:]
+    report.add(f"one row per message ({len(CSV_TWISTS)})", len(rows) == len(CSV_TWISTS),
+               f"{len(rows)} data row(s)", hint="Write exactly one row in each /cmd_vel callback.")
+    problems = []
+    for index, (row, values) in enumerate(zip(rows, CSV_TWISTS, strict=False)):
+        if len(row) != len(CSV_COLUMNS):
+            problems.append(f"row {index + 1} has {len(row)} columns, expected {len(CSV_COLUMNS)}")
+            continue
+        for column, want, got in zip(CSV_COLUMNS[1:], values, row[1:], strict=True):
+            if not _close(got, want):
+                problems.append(f"row {index + 1} {column}: expected {want}, got {got}")
+                break
+    report.add("velocities in the right columns, in message order", rows and not problems,
+               problems[0] if problems else "",
+               hint="Columns after time_s: linear.x, linear.y, linear.z, angular.x, angular.y, "
+                    "angular.z, written as plain numbers.")
+    stamps = []
+    for row in rows:
+        try:
+            stamps.append(float(row[0]))
+        except (ValueError, IndexError):
+            stamps = []
+            break
+    ordered = bool(stamps) and all(b >= a for a, b in pairwise(stamps))
+    recent = bool(stamps) and all(started - 5 <= s <= time.time() + 5 for s in stamps)
+    report.add("time_s is the receive time in seconds since the epoch, in order", ordered and recent,
+               "" if ordered and recent else "time_s missing, not a number, out of order or not "
+                                               "in seconds since the epoch",
+               hint="self.get_clock().now().nanoseconds / 1e9 gives the ROS time in seconds.")
+
+
+def _is_number_row(row: list[str]) -> bool:
+    try:
+        [float(v) for v in row]
+    except ValueError:
+        return False
+    return True
+
+
+def _pair_close(got, want: tuple[float, float]) -> bool:
+    if not (isinstance(got, (tuple, list)) and len(got) == 2):
+        return False
+    try:
+        return all(math.isclose(float(g), w, rel_tol=1e-9, abs_tol=1e-9)
+                   for g, w in zip(got, want, strict=True))
+    except (TypeError, ValueError):
+        return False
+
+
+def _close(text: str, want: float) -> bool:
+    try:
+        return math.isclose(float(text), want, rel_tol=1e-9, abs_tol=1e-9)
+    except ValueError:
+        return False
+
+
+# ---------------------------------------------------------------------- exercise 3
+LOAD_CASES = [(10, 100.0, 324), (3, 30.0, 921_600), (1, 1.0, 0)]
+
+
+def check_throughput(expected_load, measure_load, rt=None, duration_s: float = 2.0) -> CheckReport:
+    """Check ``expected_load(n, rate_hz, bytes)`` and ``measure_load(node, topics, duration_s)``.
+
+    The measured part starts 10 IMU publishers at 100 Hz in a child process and compares the
+    student's measurement with the number of messages the sensors report they really sent.
+    """
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 3: throughput of 10 sensors at 100 Hz")
+    for n, rate, size in LOAD_CASES:
+        want = (n * rate, n * rate * size)
+        name = f"expected_load({n}, {rate:g}, {size}) = ({want[0]:g} msg/s, {want[1]:,.0f} B/s)"
+        failures_before = len(report.criteria)
+        got = report.run(name, lambda n=n, r=rate, s=size: expected_load(n, r, s),
+                         hint="Return a (messages per second, bytes per second) tuple.")
+        if len(report.criteria) > failures_before:
+            continue  # it raised; report.run recorded the error
+        ok = _pair_close(got, want)
+        report.add(name, ok, "" if ok else f"got {got!r}",
+                   hint="messages/s = sensors x rate; bytes/s = messages/s x message size.")
+    message_bytes = message_size(imu_message(frame_id="imu_0"))
+    rt.spawn("sensor_array", "course_helpers.chapters.ch03_topics:make_sensor_array",
+             {"count": SENSOR_COUNT, "rate_hz": SENSOR_RATE_HZ}, wait_for="/sensor_array")
+    meter = rt.node("load_meter", console=False)
+    try:
+        topics = sensor_topics(SENSOR_COUNT)
+        rt.wait_until(lambda: all(rt.graph.count_publishers(t) for t in topics), 10, "10 sensor topics")
+        sent_before, t_before = sent_count(meter)
+        run_name = "measure_load(node, topics, duration_s) returns (messages/s, bytes/s)"
+        measured = report.run(run_name, lambda: measure_load(meter, topics, duration_s),
+                              hint="Subscribe to every topic, count messages and bytes for duration_s "
+                                   "seconds, return (messages/s, bytes/s).")
+        sent_after, t_after = sent_count(meter)
+        if measured is None:
+            return report
+        shaped = isinstance(measured, (tuple, list)) and len(measured) == 2
+        if not report.add(run_name, shaped, "" if shaped else f"got {measured!r}",
+                          hint="Return a tuple of two numbers."):
+            return report
+        msgs_per_s, bytes_per_s = (float(v) for v in measured)
+        actual = (sent_after - sent_before) / (t_after - t_before)
+        ok = math.isclose(msgs_per_s, actual, rel_tol=0.15)
+        report.add("measured messages/s matches what the sensors sent (within 15%)", ok,
+                   "" if ok else f"measured {msgs_per_s:.0f} msg/s, the sensors sent {actual:.0f} msg/s",
+                   hint="Count the messages of all 10 topics together, divide by the seconds you "
+                        "counted for, and start counting only once messages flow.")
+        per_message = bytes_per_s / msgs_per_s if msgs_per_s > 0 else 0.0
+        ok = math.isclose(per_message, message_bytes, rel_tol=0.05)
+        report.add(f"measured bytes/s ÷ messages/s is the message size ({message_bytes} B, within 5%)",
+                   ok, "" if ok else f"{per_message:.0f} B per message",
+                   hint="With raw=True the callback gets the serialized bytes: add len(data).")
+        computed = SENSOR_COUNT * SENSOR_RATE_HZ
+        ok = math.isclose(msgs_per_s, computed, rel_tol=0.25)
+        busy = actual < 0.85 * computed
+        report.add(f"computed ({computed:g} msg/s) and measured agree within 25%", ok,
+                   "" if ok else f"measured {msgs_per_s:.0f} msg/s"
+                   + ("; the sensors could not keep up on this busy machine" if busy else ""),
+                   hint="If the other criteria pass, the machine was too busy: run the check again.")
+    finally:
+        rt.remove(meter)
+        rt.stop_child("sensor_array")
+    return report

@@ -1,0 +1,187 @@
+"""Checkers of chapter 04 (services): the battery status server and the service that calls a service."""
+
+from __future__ import annotations
+
+import time
+
+from rclpy.node import Node
+from std_msgs.msg import Float32
+from std_srvs.srv import Trigger
+
+from course_helpers.chapters.ch04_services import AdderServer, IsolatedExecutor
+from course_helpers.checks import CheckReport, poll_until
+from course_helpers.core.validation import interface_name
+
+ANSWER_TIMEOUT_S = 2.0
+
+
+def offered_services(node: Node) -> dict[str, str]:
+    """The services a node object created: resolved name -> type name (read from the node, not the graph)."""
+    return {service.service_name: interface_name(service.srv_type) for service in node.services}
+
+
+def _call(rt, client, request, timeout_s: float = ANSWER_TIMEOUT_S):
+    return rt.wait_for_future(client.call_async(request), timeout_s, f"an answer from {client.srv_name}")
+
+
+def check_battery_server(node_class, rt=None) -> CheckReport:
+    """Exercise 04.1: run ``node_class``; query its ``battery_status`` Trigger service at scripted levels."""
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 04.1 - battery status service")
+    node = report.run("the node can be created", lambda: rt.add(node_class, console=False),
+                      hint="Run the class cell first; the constructor must take no arguments.")
+    if node is None:
+        return report
+    probe = rt.add(Node, "battery_checker", console=False)
+    try:
+        _check_battery(rt, report, node, probe)
+    finally:
+        rt.remove(probe)
+        rt.remove(node)
+    return report
+
+
+def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
+    if not report.add("the node is called battery_monitor", node.get_name() == "battery_monitor",
+                      _unless(node.get_name() == "battery_monitor", f"it is called {node.get_name()!r}"),
+                      "super().__init__('battery_monitor')"):
+        return
+    offered = offered_services(node).get("/battery_status")
+    if not report.add("it offers /battery_status of type std_srvs/srv/Trigger",
+                      offered == "std_srvs/srv/Trigger",
+                      f"it offers {offered}" if offered else "it offers no /battery_status service",
+                      "self.create_service(Trigger, 'battery_status', self.on_status)"):
+        return
+    client = probe.create_client(Trigger, "/battery_status")
+    if not report.add("the checker's client finds the service", poll_until(client.service_is_ready, 3.0)):
+        return
+    first = report.run("it answers before any reading", lambda: _call(rt, client, Trigger.Request()),
+                       hint="The service callback must return the response object.")
+    if first is None:
+        return
+    report.add("before any reading: success is False and the message says 'no reading'",
+               not first.success and "no reading" in first.message.lower(),
+               f"got success={first.success}, message={first.message!r}",
+               "Keep self.level = None until the first message arrives and answer 'no reading yet'.")
+    publisher = probe.create_publisher(Float32, "/battery_level", 10)
+    if not report.add("it subscribes to /battery_level", poll_until(
+            lambda: publisher.get_subscription_count() >= 1, 3.0), "",
+            "self.create_subscription(Float32, 'battery_level', self.on_level, 10)"):
+        return
+    for level, healthy in ((57.0, True), (12.4, False), (20.0, True)):
+        expected = f"{round(level)}%"
+        publisher.publish(Float32(data=level))
+        response = _poll_until(rt, client, lambda r, text=expected: text in r.message)
+        if response is None or expected not in response.message:
+            got = response.message if response is not None else "no answer"
+            report.add(f"after a reading of {level:g}%: the message contains '{expected}'", False,
+                       f"message {got!r}", "Store msg.data in on_level and format it as f'{level:.0f}%'.")
+            continue
+        low_ok = ("low" in response.message.lower()) == (not healthy)
+        report.add(f"after a reading of {level:g}%: success is {healthy} and the message is "
+                   f"{'a low-battery warning' if not healthy else 'not a warning'}",
+                   response.success == healthy and low_ok,
+                   f"got success={response.success}, message={response.message!r}",
+                   "Below 20% answer success=False and 'battery low: N%'; from 20% up, success=True "
+                   "and 'battery at N%'.")
+
+
+def check_relay_server(node_class, rt=None) -> CheckReport:
+    """Exercise 04.2: ``node_class`` answers ``add_via_relay`` by calling ``add_two_ints``, without deadlock.
+
+    The node runs next to a reference adder on a single-threaded executor of its
+    own (so a deadlock cannot freeze the kernel); the checker's client calls it
+    from the kernel.
+    """
+    from course_interfaces.srv import AddTwoInts
+
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 04.2 - a service that calls a service")
+    namespace = "/relay_check"
+    with IsolatedExecutor("single", namespace=namespace) as box:
+        backend = box.add(AdderServer)
+        relay = report.run("the node can be created", lambda: box.add(node_class),
+                           hint="Run the class cell first; the constructor must take no arguments.")
+        if relay is None:
+            return report
+        probe = rt.add(Node, "relay_checker", console=False)
+        try:
+            named = relay.get_name() == "sum_relay"
+            if not report.add("the node is called sum_relay", named,
+                              _unless(named, f"it is called {relay.get_name()!r}"),
+                              "super().__init__('sum_relay')"):
+                return report
+            offered = offered_services(relay).get(f"{namespace}/add_via_relay")
+            if not report.add("it offers add_via_relay of type course_interfaces/srv/AddTwoInts",
+                              offered == "course_interfaces/srv/AddTwoInts",
+                              f"it offers {offered}" if offered else "it offers no add_via_relay service",
+                              "self.create_service(AddTwoInts, 'add_via_relay', self.on_request)"):
+                return report
+            client = probe.create_client(AddTwoInts, f"{namespace}/add_via_relay")
+            ready = poll_until(client.service_is_ready, 3.0)
+            if not report.add("the checker's client finds the service", ready):
+                return report
+            backend_seen = poll_until(lambda: bool(relay.clients) and all(
+                c.service_is_ready() for c in relay.clients), 3.0)
+            if not report.add("it has a client of add_two_ints that found the backend", backend_seen, "",
+                              "self.create_client(AddTwoInts, 'add_two_ints', ...) in __init__"):
+                return report
+            _check_relay_answers(rt, report, client, backend, AddTwoInts)
+        finally:
+            rt.remove(probe)
+            errors = list(box.errors)
+    if errors:
+        report.add("its callbacks raised no exceptions", False, errors[0])
+    return report
+
+
+def _check_relay_answers(rt, report, client, backend, add_two_ints) -> None:
+    before = backend.answered
+    try:
+        response = _call(rt, client, add_two_ints.Request(a=2, b=3))
+    except TimeoutError:
+        report.add(f"it answers 2 + 3 within {ANSWER_TIMEOUT_S:g} s", False,
+                   "no answer: the callback is stuck waiting (deadlock)",
+                   "client.call() blocks the only executor thread. Make the callback `async def`, "
+                   "`await self.backend.call_async(...)`, and give the client a callback group of "
+                   "its own: an async callback keeps its group busy while it awaits.")
+        return
+    report.add("it answers 2 + 3 = 5", response.sum == 5, f"got {response.sum}")
+    report.add("it asked the add_two_ints backend for the sum", backend.answered == before + 1,
+               f"the backend answered {backend.answered - before} request(s)",
+               "Relay every request to add_two_ints instead of adding locally.")
+    pairs = [(-7, 10), (1000, 234), (0, 0)]
+    futures = [client.call_async(add_two_ints.Request(a=a, b=b)) for a, b in pairs]
+    try:
+        sums = [rt.wait_for_future(f, ANSWER_TIMEOUT_S, "the relayed sums").sum for f in futures]
+    except TimeoutError:
+        report.add("it answers three requests sent at once", False, "not all were answered in time",
+                   "Do not keep state between requests; each await resumes its own request.")
+        return
+    report.add("it answers three requests sent at once", sums == [a + b for a, b in pairs],
+               f"got {sums}")
+
+
+def _unless(passed: bool, detail: str) -> str:
+    return "" if passed else detail
+
+
+
+
+def _poll_until(rt, client, accept, timeout_s: float = 1.5):
+    """Call the Trigger service until ``accept(response)``; return the last response (or None)."""
+    deadline = time.monotonic() + timeout_s
+    response = None
+    while time.monotonic() < deadline:
+        try:
+            response = _call(rt, client, Trigger.Request(), 1.0)
+        except TimeoutError:
+            return response
+        if accept(response):
+            return response
+        time.sleep(0.02)
+    return response

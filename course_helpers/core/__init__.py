@@ -1,0 +1,19 @@
+"""The course's ROS machinery, shared by every chapter: the bottom layer of ``course_helpers``.
+
+It depends on rclpy and the standard library only (ipywidgets is imported lazily, and only
+inside a Jupyter kernel, to show node consoles). Nothing here knows about chapters, checkers,
+plots or the ``%ros2`` magics.
+
+* ``runtime``: one ROS context and background executor per kernel (``get_runtime()``);
+* ``executors``, ``node_hook``: the executor classes, the one spin loop, and the hook that
+  builds a student's ``Node`` subclass in the runtime's context;
+* ``waiting``: the one way to wait (``wait_until`` raises, ``poll_until`` returns a bool);
+* ``processes``, ``channel``, ``child``: the one process layer, and the one structured
+  channel on which a child reports to the kernel;
+* ``domains``, ``dds_config``: a ROS domain per kernel, machine-wide, and how participants
+  discover each other;
+* ``console``, ``logs``: node consoles under the cell that started a node;
+* ``names``, ``validation``, ``qos_dict``, ``msg_yaml``, ``units``, ``versions``,
+  ``errors``: small conversions and checks with errors a student can act on;
+* ``build_interfaces``: the rosidl build of the course's interface packages (set-up).
+"""

@@ -1,0 +1,130 @@
+"""Entry point of every child process the course starts (see :mod:`.processes`).
+
+``python -m course_helpers.core.child run module:callable '{json kwargs}'``
+    Calls the target with the keyword arguments inside the child's own course runtime.
+    If it builds nodes (it returns a node, a list of nodes, or a Node subclass is the
+    target), they are spun until the process gets SIGTERM or SIGINT; then they are
+    destroyed, and the process exits 0. The child reports ``ready`` with its nodes' full
+    names on the channel first. A target that returns None is a procedure: it runs,
+    reports what it measured over the channel, and the process exits.
+``python -m course_helpers.core.child exec PROGRAM ARGS...``
+    Becomes PROGRAM (same process ID), after arranging to die with the kernel.
+
+Either way the child asks Linux for SIGTERM when the kernel dies, and exits at once if
+the kernel is already gone.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import importlib
+import json
+import os
+import signal
+import sys
+import threading
+import traceback
+
+from course_helpers.core.channel import CHANNEL_ENV, report
+
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent() -> None:
+    """Ask Linux to send SIGTERM to this process when the kernel that started it dies."""
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+    expected = os.environ.get("COURSE_PARENT_PID")
+    if expected is not None and os.getppid() != int(expected):
+        sys.exit(0)  # the kernel is already gone
+
+
+def load_target(spec: str):
+    """Import ``module:callable`` and return the callable."""
+    module_name, _, attr = spec.partition(":")
+    if not module_name or not attr:
+        raise SystemExit(f"target must look like 'package.module:callable', got {spec!r}")
+    obj = importlib.import_module(module_name)
+    for part in attr.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+class _StopSignal:
+    """SIGTERM/SIGINT: while nodes are served, ask the serving loop to stop; before, exit."""
+
+    def __init__(self):
+        self.event = threading.Event()
+        self.serving = False
+        signal.signal(signal.SIGTERM, self._handle)
+        signal.signal(signal.SIGINT, self._handle)
+
+    def _handle(self, _signum, _frame) -> None:
+        self.event.set()
+        if not self.serving:
+            raise SystemExit(0)  # stopped before (or instead of) serving nodes: end at once
+
+
+def run(spec: str, kwargs: dict) -> int:
+    """Run a target in this process's course runtime; the process's exit code."""
+    from rclpy.node import Node
+
+    from course_helpers.core.runtime import get_runtime
+
+    stop = _StopSignal()
+    target = load_target(spec)
+    rt = get_runtime()
+    try:
+        try:
+            result = rt.build(target, **kwargs)
+        except Exception as exc:
+            report("error", type=type(exc).__name__, message=str(exc))
+            raise
+        nodes = [result] if isinstance(result, Node) else [n for n in (result or []) if isinstance(n, Node)]
+        if not nodes:
+            return 0
+        for node in nodes:
+            rt.add(node, console=False)
+        stop.serving = True
+        report("ready", nodes=[n.get_fully_qualified_name() for n in nodes], pid=os.getpid())
+        print(f"child {os.getpid()} ready: {[n.get_fully_qualified_name() for n in nodes]}", flush=True)
+        while not stop.event.wait(3600):  # interruptible: the handler sets the event
+            pass
+        return 0
+    finally:
+        stop.serving = True  # a second signal during the clean-up must not cut it short
+        rt.stop()
+
+
+def become(program: str, args: list[str]) -> None:
+    """Replace this process with ``program`` (the channel is not passed on)."""
+    fd = os.environ.pop(CHANNEL_ENV, None)
+    if fd is not None:
+        try:
+            os.close(int(fd))
+        except OSError:
+            pass
+    os.execvp(program, [program, *args])  # searches PATH, like a shell
+
+
+def main(argv: list[str]) -> int:
+    die_with_parent()
+    if len(argv) >= 3 and argv[1] == "exec":
+        become(argv[2], argv[3:])
+    if len(argv) != 4 or argv[1] != "run":
+        print("usage: python -m course_helpers.core.child run module:callable '{json kwargs}'\n"
+              "       python -m course_helpers.core.child exec PROGRAM [ARGS...]", file=sys.stderr)
+        return 2
+    try:
+        return run(argv[2], json.loads(argv[3]))
+    except SystemExit:
+        raise
+    except Exception:
+        traceback.print_exc()
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

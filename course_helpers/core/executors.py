@@ -1,0 +1,135 @@
+"""The executors the course spins, and the one loop that spins them (every chapter).
+
+``SpinThread`` runs :func:`spin_until_stopped` in a background thread: the runtime's
+executor, the ``/rosout`` reader of the node consoles, the isolated executors of
+chapters 02 and 04 and the child processes all use it. The loop waits without a
+timeout (a timeout would cost a new rcl timer per wait); whoever stops it wakes the
+executor, which ends the wait. A callback's exception never ends the thread: it is
+handed to ``on_error``.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+from rclpy.executors import (
+    ConditionReachedException,
+    MultiThreadedExecutor,
+    ShutdownException,
+    SingleThreadedExecutor,
+    TimeoutException,
+)
+
+ErrorHandler = Callable[[BaseException], None]
+
+
+def spin_until_stopped(executor, stop_requested: Callable[[], bool], on_error: ErrorHandler) -> None:
+    """Spin ``executor`` in this thread until ``stop_requested()`` or its context shuts down."""
+    context = executor.context
+    while not stop_requested() and context.ok():
+        try:
+            executor._spin_once_impl(None, stop_requested)
+        except (ShutdownException, ConditionReachedException):
+            continue  # the loop condition decides
+        except Exception as exc:
+            on_error(exc)
+
+
+class SpinThread:
+    """A daemon thread spinning one executor until :meth:`stop` (or its context shuts down)."""
+
+    def __init__(self, executor, name: str, on_error: ErrorHandler,
+                 on_exit: Callable[[], None] | None = None):
+        self.executor = executor
+        self._stop = threading.Event()
+        self._on_error = on_error
+        self._on_exit = on_exit
+        self.thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> SpinThread:
+        self.thread.start()
+        return self
+
+    def _run(self) -> None:
+        try:
+            spin_until_stopped(self.executor, self._stop.is_set, self._on_error)
+        finally:
+            if self._on_exit is not None:
+                self._on_exit()
+
+    @property
+    def alive(self) -> bool:
+        return self.thread.is_alive()
+
+    def stop(self, timeout: float = 10.0) -> bool:
+        """Ask the loop to end, wake the executor and join; True if the thread ended."""
+        self._stop.set()
+        try:
+            self.executor.wake()
+        except Exception:  # the context is already shut down: the loop ends by itself
+            pass
+        if self.thread is not threading.current_thread() and self.thread.ident is not None:
+            self.thread.join(timeout)
+        return not self.thread.is_alive()
+
+
+class RoutedCallbacks:
+    """Executor mix-in: route each callback's output to its node's console; report errors.
+
+    A plain rclpy executor re-raises a callback's exception out of ``spin()``, which
+    would end the background thread; here the traceback goes to the node's console
+    (through ``router``) and the other nodes keep running.
+    """
+
+    def _setup_routing(self, console_of_node: Callable, router, on_callback_error: Callable):
+        self._console_of_node = console_of_node
+        self._router = router
+        self._on_callback_error = on_callback_error
+        self._current_console = None
+
+    def _spin_once_impl(self, timeout_sec=None, wait_condition=lambda: False):
+        try:
+            handler, _entity, node = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)
+        except (ShutdownException, TimeoutException, ConditionReachedException):
+            return
+        target = self._console_of_node(node)
+        if target is not self._current_console:
+            self._router.enter(target)
+            self._current_console = target
+        handler()
+        exc = handler.exception()
+        if exc is not None:
+            where = node.get_fully_qualified_name() if node is not None else "a task"
+            self._on_callback_error(target, where, exc)
+
+
+class CourseSingleThreadedExecutor(RoutedCallbacks, SingleThreadedExecutor):
+    """The runtime's default executor: one thread, callbacks routed to their consoles."""
+
+    def __init__(self, context, console_of_node, router, on_callback_error):
+        super().__init__(context=context)
+        self._setup_routing(console_of_node, router, on_callback_error)
+
+
+class CourseMultiThreadedExecutor(MultiThreadedExecutor):
+    """Multi-threaded executor (chapter 02); a callback's error is reported, not raised."""
+
+    def __init__(self, context, num_threads: int, on_callback_error):
+        super().__init__(num_threads=num_threads, context=context)
+        self._on_callback_error = on_callback_error
+
+    def _spin_once_impl(self, timeout_sec=None, wait_condition=lambda: False):
+        try:
+            super()._spin_once_impl(timeout_sec, wait_condition)
+        except (ShutdownException, TimeoutException, ConditionReachedException):
+            return
+        except Exception as exc:  # raised from a finished callback's future
+            self._on_callback_error(None, "a multi-threaded callback", exc)
+
+
+def plain_executor(kind: str, context, threads: int = 2):
+    """A plain rclpy executor of ``kind`` 'single' or 'multi' (for measurements that compare them)."""
+    if kind == "single":
+        return SingleThreadedExecutor(context=context)
+    return MultiThreadedExecutor(num_threads=threads, context=context)

@@ -1,0 +1,413 @@
+"""The one process layer: every child process of the course starts, reports and stops here.
+
+Child-process nodes (``rt.spawn``), the nodes of packages built with colcon (chapter 09),
+eProsima's discovery server (chapter 07) and launch groups (chapter 06) all go through
+:func:`start`. The layer owns
+
+* start: a labelled process; starting a label that runs already stops the old process
+  first, so re-running a cell never leaves two;
+* die with the parent: the child asks Linux to send it SIGTERM when the kernel dies, and
+  exits at once if the kernel is already gone. Processes are forked from one long-lived
+  launcher thread, because Linux ties that signal to the thread that forked the child;
+* the channel: each child gets a pipe for structured reports (:mod:`.channel`);
+* stop together: SIGTERM to all, then wait, then SIGKILL after a grace period;
+* the registry of what runs, and reaping everything at exit.
+
+Children start in their own session, so the notebook's interrupt button never reaches
+them; their output (stdout and stderr) goes to a log file.
+"""
+
+from __future__ import annotations
+
+import atexit
+import json
+import os
+import queue
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future
+
+from course_helpers.core.channel import CHANNEL_ENV, ChannelReader
+from course_helpers.core.errors import CourseError
+from course_helpers.core.waiting import poll_until
+
+STOP_GRACE_S = 2.0  # s; SIGTERM, then SIGKILL after this long (a clean stop takes about 0.2 s)
+PARENT_ENV = "COURSE_PARENT_PID"
+OUTPUT_TAIL_CHARS = 2000
+
+_lock = threading.RLock()
+_registry: dict[tuple[str, str], ChildProcess] = {}
+_log_dir: list[str] = []
+
+
+class ChildProcess:
+    """A process started by the course: its label, output, reports and exit."""
+
+    def __init__(self, label: str, group: str, argv: list[str], process: subprocess.Popen,
+                 log_path: str, channel: ChannelReader | None, target: str = "",
+                 stop_signal: int = signal.SIGTERM):
+        self.label = label
+        self.stop_signal = stop_signal
+        self.group = group
+        self.argv = argv
+        self.process = process
+        self.log_path = log_path
+        self.channel = channel
+        self.target = target
+        self.started = time.monotonic()
+        self.stop_requested = False
+
+    # ------------------------------------------------------------------ state
+    @property
+    def name(self) -> str:
+        """The label it was started with (``rt.spawn('talker', ...)`` -> 'talker')."""
+        return self.label
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    @property
+    def alive(self) -> bool:
+        """True while the process runs."""
+        return self.process.poll() is None
+
+    @property
+    def returncode(self) -> int | None:
+        """The exit code, or None while running (negative: ended by that signal)."""
+        return self.process.poll()
+
+    # ------------------------------------------------------------------ output and reports
+    def log(self) -> str:
+        """Everything the process printed (stdout and stderr)."""
+        try:
+            with open(self.log_path, encoding="utf-8", errors="replace") as handle:
+                return handle.read()
+        except OSError:
+            return ""
+
+    def output_tail(self, chars: int = OUTPUT_TAIL_CHARS) -> str:
+        """The end of :meth:`log`, for error messages."""
+        return self.log()[-chars:]
+
+    def reports(self, tag: str | None = None) -> list[dict]:
+        """The reports the child sent over its channel (of ``tag`` only, if given)."""
+        return self.channel.reports(tag) if self.channel is not None else []
+
+    def last(self, tag: str) -> dict | None:
+        """The newest report with ``tag``, or None."""
+        return self.channel.last(tag) if self.channel is not None else None
+
+    def failure(self, what: str) -> CourseError:
+        """An error saying the process ended while ``what`` was awaited, with its output."""
+        return CourseError(f"{self.group} process {self.label!r} exited with code {self.returncode} "
+                           f"before {what}. Its output:\n{self.output_tail()}")
+
+    def wait_for_report(self, tag: str, timeout: float, what: str | None = None) -> dict:
+        """Wait for a report with ``tag``; raise if the process ends or ``timeout`` passes first."""
+        from course_helpers.core.errors import WaitTimeout
+
+        what = what or f"its {tag!r} report"
+        poll_until(lambda: self.last(tag) is not None or not self.alive, timeout)
+        found = self.last(tag)
+        if found is None and self.channel is not None and not self.alive:
+            self.channel.close()  # the pipe may still hold the last reports
+            found = self.last(tag)
+        if found is not None:
+            return found
+        if not self.alive:
+            raise self.failure(what)
+        raise WaitTimeout(f"timed out after {timeout:g} s waiting for {what} from {self.group} "
+                          f"process {self.label!r}. Its output:\n{self.output_tail()}")
+
+    def wait_for_exit(self, timeout: float, what: str | None = None) -> int:
+        """Wait until the process exits on its own; its exit code. Raises WaitTimeout."""
+        from course_helpers.core.errors import WaitTimeout
+
+        if not poll_until(lambda: not self.alive, timeout):
+            raise WaitTimeout(f"timed out after {timeout:g} s waiting for {what or 'it to finish'} "
+                              f"({self.group} process {self.label!r})")
+        if self.channel is not None:
+            self.channel.close()
+        return self.returncode
+
+    # ------------------------------------------------------------------ stopping
+    def kill(self) -> None:
+        """Kill the process at once with SIGKILL, as a crash would (no clean shutdown)."""
+        if self.alive:
+            self.process.kill()
+        self.process.wait(timeout=5)
+
+    def request_stop(self) -> None:
+        """Send the stop signal and return at once (:meth:`stop` then waits for the exit)."""
+        if self.alive and not self.stop_requested:
+            self.process.send_signal(self.stop_signal)
+            self.stop_requested = True
+
+    def stop(self, grace_s: float = STOP_GRACE_S) -> int:
+        """Ask the process to end (SIGTERM, or SIGINT for a ``ros2 run``-style program); SIGKILL it
+        if it has not ended within ``grace_s``."""
+        if self.alive:
+            self.request_stop()
+            try:
+                self.process.wait(timeout=grace_s)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(timeout=5)
+        if self.channel is not None:
+            self.channel.close()
+        with _lock:
+            if _registry.get((self.group, self.label)) is self:
+                del _registry[(self.group, self.label)]
+        return self.process.returncode
+
+    def __repr__(self) -> str:
+        state = "running" if self.alive else f"exited {self.returncode}"
+        return f"<ChildProcess {self.label!r} pid={self.pid} {state}>"
+
+
+# ---------------------------------------------------------------------- commands
+def target_spec(target) -> str:
+    """``'module:callable'`` for a child-process target given as a string or as the function.
+
+    A function must be defined at the top level of an importable module, so that the child
+    can import it; passing the function itself makes a moved or renamed target fail where it
+    is imported, not later in the child.
+    """
+    if isinstance(target, str):
+        module, _, attr = target.partition(":")
+        if module and attr and all(part.isidentifier() for part in (*module.split("."), *attr.split("."))):
+            return target
+        raise CourseError(f"target must be 'package.module:callable' (for example "
+                          f"'course_helpers.nodes.chatter:make_talker') or the function itself, "
+                          f"got {target!r}")
+    if callable(target):
+        module = getattr(target, "__module__", None)
+        qualname = getattr(target, "__qualname__", "")
+        if not module or module == "__main__" or "<" in qualname:
+            raise CourseError(
+                f"{qualname or target!r} cannot run in a child process: a child imports its target, "
+                "so it must be a function or class defined at the top level of a module (not in a "
+                "notebook cell, not a lambda or a nested function). Put it in a .py file next to "
+                "the notebook and import it from there.")
+        return f"{module}:{qualname}"
+    raise CourseError(f"target must be a function, a Node subclass or 'module:callable', "
+                      f"got {type(target).__name__}")
+
+
+def python_target_argv(target, kwargs: dict | None = None) -> list[str]:
+    """The command line that runs ``target(**kwargs)`` in a child (see :mod:`.child`)."""
+    spec = target_spec(target)
+    try:
+        payload = json.dumps(kwargs or {})
+    except TypeError as exc:
+        raise CourseError(f"child-process arguments must be JSON values (numbers, strings, lists, "
+                          f"dicts): {exc}") from None
+    return [sys.executable, "-m", "course_helpers.core.child", "run", spec, payload]
+
+
+def program_argv(program: str, *args: str) -> list[str]:
+    """The command line that runs an executable so that it dies with the kernel."""
+    return [sys.executable, "-m", "course_helpers.core.child", "exec", program, *map(str, args)]
+
+
+# ---------------------------------------------------------------------- starting
+class _Launcher:
+    """One long-lived thread that forks every child (PR_SET_PDEATHSIG follows the forking thread)."""
+
+    def __init__(self):
+        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
+        self._thread: threading.Thread | None = None
+        self._guard = threading.Lock()
+
+    def run(self, job: Callable[[], object]):
+        with self._guard:
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._serve, name="course-launcher", daemon=True)
+                self._thread.start()
+        future: Future = Future()
+        self._jobs.put((job, future))
+        return future.result()
+
+    def _serve(self) -> None:
+        while True:
+            job, future = self._jobs.get()
+            try:
+                future.set_result(job())
+            except BaseException as exc:  # handed to the caller
+                future.set_exception(exc)
+
+
+_launcher = _Launcher()
+
+
+def log_dir() -> str:
+    """This process's folder for child logs (removed at exit)."""
+    with _lock:
+        if not _log_dir:
+            _log_dir.append(tempfile.mkdtemp(prefix="ros2-course-"))
+        return _log_dir[0]
+
+
+def start(label: str, argv: list[str], *, group: str = "node", env: dict | None = None,
+          cwd: str | None = None, channel: bool = True, target: str = "",
+          stop_signal: int = signal.SIGTERM) -> ChildProcess:
+    """Start ``argv`` as the process ``label`` of ``group``; an old one with that label is stopped first.
+
+    ``env`` adds to (or, with a value of None, removes from) the kernel's environment.
+    ``channel`` gives the child a report pipe. ``stop_signal`` is what :meth:`ChildProcess.stop`
+    sends first (SIGINT for programs written to stop on Ctrl+C, as ``ros2 run`` does).
+    Build ``argv`` with :func:`python_target_argv` or :func:`program_argv`, so that the child
+    dies with the kernel.
+    """
+    if not isinstance(label, str) or not label:
+        raise CourseError(f"a process label must be a non-empty string, got {label!r}")
+    stop([label], group=group)
+    full_env = _environment(env)
+    full_env[PARENT_ENV] = str(os.getpid())
+    full_env["PYTHONUNBUFFERED"] = "1"
+    full_env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in label)
+    log_path = os.path.join(log_dir(), f"{group}-{safe}-{time.monotonic_ns()}.log")
+    read_fd = write_fd = None
+    if channel:
+        read_fd, write_fd = os.pipe()
+        full_env[CHANNEL_ENV] = str(write_fd)
+    else:
+        full_env.pop(CHANNEL_ENV, None)
+
+    def fork() -> subprocess.Popen:
+        with open(log_path, "wb") as log:
+            return subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                    env=full_env, cwd=cwd or os.getcwd(), start_new_session=True,
+                                    pass_fds=(write_fd,) if channel else ())
+
+    try:
+        process = _launcher.run(fork)
+    except OSError as exc:
+        if channel:
+            os.close(read_fd)
+            os.close(write_fd)
+        raise CourseError(f"could not start {group} process {label!r} ({argv[0]}): {exc}") from None
+    reader = None
+    if channel:
+        os.close(write_fd)
+        reader = ChannelReader(read_fd, label)
+    child = ChildProcess(label, group, argv, process, log_path, reader, target, stop_signal)
+    with _lock:
+        _registry[(group, label)] = child
+    return child
+
+
+def _environment(changes: dict | None) -> dict[str, str]:
+    """The kernel's environment with ``changes`` applied (a value of None removes the variable)."""
+    env = dict(os.environ)
+    for key, value in (changes or {}).items():
+        if value is None:
+            env.pop(key, None)
+        else:
+            env[key] = str(value)
+    return env
+
+
+def run(argv: list[str], *, env: dict | None = None, cwd: str | None = None, timeout: float = 300.0,
+        on_line: Callable[[str], None] | None = None, log=None) -> tuple[int, str]:
+    """Run a command to its end (a build step), passing each output line to ``on_line``.
+
+    Returns ``(exit code, everything it printed)``; the output is also written to the open text
+    file ``log`` if given. A command still running after ``timeout`` seconds is killed and reported with
+    :class:`CourseError`. It dies with the kernel like every other child.
+    """
+    full_env = _environment(env)
+    full_env.pop(CHANNEL_ENV, None)
+
+    def fork() -> subprocess.Popen:
+        return subprocess.Popen(program_argv(argv[0], *argv[1:]), stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=full_env,
+                                cwd=cwd or os.getcwd(), text=True, errors="replace", bufsize=1,
+                                start_new_session=True)
+
+    try:
+        process = _launcher.run(fork)
+    except OSError as exc:
+        raise CourseError(f"could not run {argv[0]}: {exc}") from None
+    timed_out = threading.Event()
+
+    def kill_on_timeout() -> None:
+        timed_out.set()
+        process.kill()
+
+    timer = threading.Timer(timeout, kill_on_timeout)
+    timer.daemon = True
+    timer.start()
+    lines: list[str] = []
+    try:
+        for line in process.stdout:
+            line = line.rstrip("\n")
+            lines.append(line)
+            if log is not None:
+                log.write(line + "\n")
+            if on_line is not None:
+                on_line(line)
+        code = process.wait()
+    finally:
+        timer.cancel()
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    if timed_out.is_set():
+        raise CourseError(f"{os.path.basename(argv[0])} took longer than {timeout:g} s and was stopped. "
+                          "Its last lines:\n" + "\n".join(lines[-20:]))
+    return code, "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- the registry
+def running(group: str | None = None) -> dict[str, ChildProcess]:
+    """The processes started and not yet stopped (of ``group`` only, if given), by label."""
+    with _lock:
+        return {label: child for (g, label), child in _registry.items() if group in (None, g)}
+
+
+def get(label: str, group: str = "node") -> ChildProcess | None:
+    """The process ``label`` of ``group``, if it was started and not stopped."""
+    with _lock:
+        return _registry.get((group, label))
+
+
+def stop_together(children: list[ChildProcess], grace_s: float = STOP_GRACE_S) -> dict[str, int | None]:
+    """SIGTERM to every child first, then wait for each: as long as the slowest, not the sum."""
+    for child in children:
+        child.request_stop()
+    return {child.label: child.stop(grace_s) for child in children}
+
+
+def stop(labels, group: str = "node", grace_s: float = STOP_GRACE_S) -> dict[str, int | None]:
+    """Stop the processes ``labels`` of ``group`` together; exit codes by label (unknown labels skipped)."""
+    with _lock:
+        picked = [_registry.pop((group, label)) for label in labels if (group, label) in _registry]
+    return stop_together(picked, grace_s)
+
+
+def stop_all(grace_s: float = STOP_GRACE_S) -> None:
+    """Stop every process the course started in this process."""
+    with _lock:
+        picked = list(_registry.values())
+        _registry.clear()
+    stop_together(picked, grace_s)
+
+
+def _at_exit() -> None:
+    stop_all(grace_s=1.0)
+    with _lock:
+        for folder in _log_dir:
+            shutil.rmtree(folder, ignore_errors=True)
+        _log_dir.clear()
+
+
+atexit.register(_at_exit)

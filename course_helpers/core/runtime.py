@@ -1,0 +1,492 @@
+"""The ROS runtime of a kernel: one context, one background executor, re-run-safe nodes.
+
+Every chapter starts with ``rt = get_runtime()``. The runtime
+
+* owns its own rclpy ``Context`` with signal handlers off, so the kernel's stop button
+  (SIGINT) interrupts the cell and never shuts ROS down;
+* spins one background executor thread (single-threaded by default, the fastest here;
+  chapter 02 opts into multi-threaded to teach callback groups);
+* keeps node names unique: adding a node whose name is taken destroys the old one first,
+  so re-running a cell never leaves duplicates;
+* waits for futures, conditions and messages from the notebook without spinning;
+* runs nodes in child processes through the process layer, and stops them with itself;
+* isolates each kernel in its own ROS domain with localhost-only discovery;
+* heals: if its context is shut down from outside (``rclpy.shutdown()``, or an interrupt
+  while rclpy's own signal handler is installed), the next use stops everything that is
+  left and starts afresh, and says so in one line.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import threading
+import time
+from collections.abc import Callable
+
+import rclpy
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
+
+from course_helpers.core import console as _console
+from course_helpers.core import processes
+from course_helpers.core.domains import DomainChoice, choose_domain
+from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.executors import (
+    CourseMultiThreadedExecutor,
+    CourseSingleThreadedExecutor,
+    SpinThread,
+)
+from course_helpers.core.logs import RosoutReader
+from course_helpers.core.names import as_full_name, full_name, node_full_names
+from course_helpers.core.node_hook import build_nodes
+from course_helpers.core.spawning import ChildProcesses
+from course_helpers.core.validation import (
+    check_depth,
+    check_namespace,
+    check_node_name,
+    check_topic_name,
+    interface_name,
+    resolve_interface,
+)
+from course_helpers.core.versions import rclpy_version
+from course_helpers.core.waiting import poll_until, wait_until
+
+INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's daemon nodes
+EXECUTORS = ("single", "multi")
+# A new participant announces itself at once and then periodically; by this long after the
+# runtime started, the participants that were already running have been found.
+GRAPH_SETTLE_S = 1.0
+HEALED_MESSAGE = (
+    "[course] ROS was shut down from outside the course runtime (by rclpy.shutdown(), or by an "
+    "interrupt while rclpy's signal handler was installed, as a plain rclpy.init() does). The "
+    "runtime has restarted: run the cells that add your nodes again. {handler}")
+
+
+class CourseRuntime(ChildProcesses):
+    """One per kernel: see the module docstring. Get it with :func:`get_runtime`."""
+
+    def __init__(self, executor: str = "single", threads: int = 4):
+        _check_executor(executor)
+        self.executor_kind = executor
+        self.threads = threads
+        self.domain: DomainChoice | None = None
+        self.context: Context | None = None
+        self.executor = None
+        self.errors: list[str] = []
+        self.restarts = 0  # how often the runtime healed itself
+        self._nodes: dict[str, Node] = {}
+        self._node_consoles: dict[int, _console.NodeConsole] = {}
+        self._spinner: SpinThread | None = None
+        self._lock = threading.RLock()
+        self._active = False  # started and not stopped by us
+        self._started_at = 0.0
+        self._graph_settled = False
+        self._router = _console.ConsoleRouter()
+        self._in_kernel = _console.in_jupyter_kernel()
+        self._internal: Node | None = None
+        self._internal_spun = False
+        self._log_reader: RosoutReader | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+    @property
+    def running(self) -> bool:
+        """True while the background executor spins and the context is valid."""
+        return bool(self._spinner and self._spinner.alive and self.context and self.context.ok())
+
+    @property
+    def log_dir(self) -> str:
+        """The folder where this process keeps its children's output."""
+        return processes.log_dir()
+
+    def start(self) -> CourseRuntime:
+        """Create the context and start the executor thread (a no-op if already running)."""
+        with self._lock:
+            if self.running:
+                return self
+            if self._active:  # shut down from outside: clear what is left first
+                self._heal()
+                return self
+            self.domain = choose_domain()
+            self.context = Context()
+            args = ["--ros-args", "--disable-stdout-logs"] if self._in_kernel else None
+            rclpy.init(args=args, context=self.context, domain_id=self.domain.domain_id,
+                       signal_handler_options=SignalHandlerOptions.NO)
+            if self.executor_kind == "multi":
+                self.executor = CourseMultiThreadedExecutor(self.context, self.threads, self._record_error)
+            else:
+                self.executor = CourseSingleThreadedExecutor(self.context, self._console_of_node,
+                                                             self._router, self._record_error)
+            if self._in_kernel:
+                self._router.start()
+                self._log_reader = RosoutReader(self.context, self._on_log, self._log_reader_error)
+            self._spinner = SpinThread(self.executor, "ros-executor",
+                                       lambda exc: self._record_error(None, "the executor", exc),
+                                       on_exit=lambda: self._router.enter(None)).start()
+            self._active = True
+            self._started_at = time.monotonic()
+            self._graph_settled = False
+        return self
+
+    def stop(self) -> None:
+        """Stop children, destroy nodes, join the executor thread and shut the context down."""
+        with self._lock:
+            self._active = False
+            self.stop_children(list(self.children()))
+            if self._spinner is not None:
+                self._spinner.stop()
+                self._spinner = None
+            for fqn in list(self._nodes):
+                self._destroy(self._nodes.pop(fqn))
+            self._node_consoles.clear()
+            if self._log_reader is not None:
+                self._log_reader.stop()
+                self._log_reader = None
+            if self._internal is not None:
+                _quietly(self._internal.destroy_node)
+                self._internal = None
+                self._internal_spun = False
+            if self.executor is not None:
+                _quietly(self.executor.shutdown, timeout_sec=1.0)
+                self.executor = None
+            if self.context is not None and self.context.ok():
+                self.context.try_shutdown()
+            self._router.stop()
+
+    def restart(self, executor: str | None = None) -> CourseRuntime:
+        """Stop and start again (optionally switching to the 'single' or 'multi' executor)."""
+        if executor is not None:
+            _check_executor(executor)
+        self.stop()
+        if executor is not None:
+            self.executor_kind = executor
+        return self.start()
+
+    def _heal(self) -> None:
+        """The context was shut down from outside: stop everything left, start again, say so."""
+        self.stop()
+        handler = ""
+        if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
+            uninstall_signal_handlers()
+            handler = ("rclpy's signal handler has been removed again, so the interrupt button "
+                       "stops only the cell; use rt.add(...) instead of rclpy.init()/rclpy.spin() "
+                       "to keep it that way.")
+        self.restarts += 1
+        self.start()
+        print(HEALED_MESSAGE.format(handler=handler).strip(), flush=True)
+
+    def _ensure_running(self) -> None:
+        if not self.running:
+            self.start()
+
+    # ------------------------------------------------------------------ nodes
+    def build(self, factory: Callable, *args, **kwargs):
+        """Call ``factory(*args, **kwargs)`` so that every node it builds joins this runtime's context.
+
+        Names are checked and a running node with the same full name is destroyed first. The
+        nodes are not spun (see :meth:`add`); a constructor that fails leaves nothing behind.
+        """
+        self._ensure_running()
+        return build_nodes(self.context, factory, *args, on_name=self._free_name, **kwargs)
+
+    def add(self, node_or_factory, *args, console: bool | None = None, **kwargs) -> Node:
+        """Spin a node in the background and return it.
+
+        Pass a Node subclass (or any callable returning a node) and its arguments:
+        ``rt.add(Talker)``. The node is created in the runtime's context. If a node with the
+        same full name is running, it is destroyed first, so re-running a cell replaces the
+        node instead of duplicating it. In a notebook, the node's prints and logs appear in a
+        console under the cell (``console=False`` hides it).
+        """
+        self._ensure_running()
+        if isinstance(node_or_factory, Node):
+            if args or kwargs:
+                raise CourseError("pass arguments only with a class: rt.add(Talker, rate_hz=5)")
+            node = node_or_factory
+            if node.context is not self.context:
+                raise CourseError(
+                    f"node {node.get_name()!r} belongs to another rclpy context. Let the runtime "
+                    "create it: rt.add(MyNode) instead of rt.add(MyNode()), or build it with "
+                    "context=rt.context.")
+            self._evict(node.get_fully_qualified_name(), keep=node)
+        elif callable(node_or_factory):
+            node = self.build(node_or_factory, *args, **kwargs)
+            if not isinstance(node, Node):
+                raise CourseError(f"{getattr(node_or_factory, '__name__', node_or_factory)!r} returned "
+                                  f"{type(node).__name__}, not an rclpy Node")
+        else:
+            raise CourseError(f"rt.add() takes a Node subclass, a function returning a node, or a "
+                              f"node; got {type(node_or_factory).__name__}")
+        self._register(node, console)
+        return node
+
+    def node(self, name: str, namespace: str = "", **node_kwargs) -> Node:
+        """Create (or re-create) a plain node called ``name`` and spin it: ``rt.node('probe')``."""
+        check_node_name(name)
+        namespace = check_namespace(namespace)
+        return self.add(Node, name, namespace=namespace, **node_kwargs)
+
+    def remove(self, node_or_name) -> bool:
+        """Destroy a node by object or full name ('/talker'); True if one was removed."""
+        fqn = (node_or_name.get_fully_qualified_name() if isinstance(node_or_name, Node)
+               else as_full_name(node_or_name))
+        with self._lock:
+            node = self._nodes.pop(fqn, None)
+        if node is None:
+            return False
+        self._destroy(node)
+        return True
+
+    def remove_all(self) -> None:
+        """Destroy every node the notebook added (the runtime keeps running)."""
+        for fqn in list(self._nodes):
+            self.remove(fqn)
+
+    def nodes(self) -> list[str]:
+        """Full names of the nodes this kernel spins, sorted."""
+        self._ensure_running()
+        return sorted(self._nodes)
+
+    def get(self, fqn: str) -> Node:
+        """The running node with this full name, e.g. ``rt.get('/talker')``."""
+        try:
+            return self._nodes[as_full_name(fqn)]
+        except KeyError:
+            raise CourseError(f"no node {fqn!r} in this kernel; running: "
+                              f"{', '.join(self.nodes()) or 'none'}") from None
+
+    def _free_name(self, name: str, namespace: str) -> None:
+        check_node_name(name)
+        self._evict(full_name(check_namespace(namespace), name))
+
+    def _register(self, node: Node, console: bool | None) -> None:
+        fqn = node.get_fully_qualified_name()
+        with self._lock:
+            self._nodes[fqn] = node
+            if self._in_kernel:
+                show = console is None or bool(console)
+                self._node_consoles[id(node)] = self._router.open(node.get_logger().name, fqn, show=show)
+        self.executor.add_node(node)
+
+    def _evict(self, fqn: str, keep: Node | None = None) -> None:
+        with self._lock:
+            old = self._nodes.get(fqn)
+            if old is None or old is keep:
+                return
+            del self._nodes[fqn]
+        self._destroy(old)
+
+    def _destroy(self, node: Node) -> None:
+        """Remove a node from the executor and destroy it in the executor's own thread."""
+        def destroy():
+            if self.executor is not None:
+                self.executor.remove_node(node)
+            node.destroy_node()
+            _destroy_actions_of(node)
+
+        self._node_consoles.pop(id(node), None)
+        self._router.close(node.get_logger().name)
+        if self.running and not self._in_executor_thread():
+            self.call_in_executor(destroy, timeout=5.0)
+        else:
+            _quietly(destroy)
+
+    def _console_of_node(self, node):
+        return self._node_consoles.get(id(node)) if node is not None else None
+
+    def _in_executor_thread(self) -> bool:
+        return self._spinner is not None and threading.current_thread() is self._spinner.thread
+
+    # ------------------------------------------------------------------ waiting
+    def call_in_executor(self, function: Callable, *args, timeout: float = 5.0):
+        """Run ``function(*args)`` in the executor thread and return its result.
+
+        Called from the executor thread itself (from a callback), it runs the function directly.
+        """
+        self._ensure_running()
+        if self._in_executor_thread():
+            return function(*args)
+        task = self.executor.create_task(function, *args)
+        self.executor.wake()
+        return self.wait_for_future(task, timeout=timeout, what=getattr(function, "__name__", "task"))
+
+    def wait_for_future(self, future, timeout: float = 5.0, what: str = "the future"):
+        """Wait (without spinning) until ``future`` is done; return its result.
+
+        Raises :class:`WaitTimeout` naming ``what`` after ``timeout`` seconds.
+        """
+        done = threading.Event()
+        future.add_done_callback(lambda _f: done.set())
+        if not done.wait(timeout):
+            raise WaitTimeout(f"timed out after {timeout:g} s waiting for {what}")
+        if future.exception() is not None:
+            raise future.exception()
+        return future.result()
+
+    def wait_until(self, predicate: Callable[[], object], timeout: float = 5.0,
+                   what: str = "the condition") -> bool:
+        """Wait until ``predicate()`` is true; raise :class:`WaitTimeout` naming ``what`` if not."""
+        return wait_until(predicate, timeout, what)
+
+    def poll_until(self, predicate: Callable[[], object], timeout: float = 5.0) -> bool:
+        """Wait until ``predicate()`` is true; False (not an error) if ``timeout`` passes first."""
+        return poll_until(predicate, timeout)
+
+    def wait_for_messages(self, topic: str, msg_type, count: int = 1, timeout: float = 5.0,
+                          qos: QoSProfile | int = 10) -> list:
+        """Subscribe to ``topic``, return the first ``count`` messages, then unsubscribe."""
+        check_topic_name(topic)
+        msg_type = resolve_interface(msg_type, "msg")
+        if isinstance(qos, int):
+            qos = check_depth(qos)
+        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+            raise CourseError(f"count must be a whole number >= 1, got {count!r}")
+        received: list = []
+        internal = self.graph
+        sub = internal.create_subscription(msg_type, topic, received.append, qos)
+        try:
+            wait_until(lambda: len(received) >= count, timeout,
+                       f"{count} message(s) on {topic} ({interface_name(msg_type)}); got {len(received)}")
+        finally:
+            self.call_in_executor(internal.destroy_subscription, sub)
+        return received[:count]
+
+    def wait_for_node(self, fqn: str, timeout: float = 10.0) -> None:
+        """Wait until a node (in any process of this domain) shows up in the ROS graph."""
+        fqn = as_full_name(fqn)
+        wait_until(lambda: fqn in self.graph_nodes(), timeout, f"node {fqn} in the graph")
+
+    # ------------------------------------------------------------------ the graph
+    def graph_nodes(self, include_hidden: bool = False) -> list[str]:
+        """Full names of all nodes discovered in this domain (the live graph)."""
+        return node_full_names(self._graph_node().get_node_names_and_namespaces(), include_hidden)
+
+    @property
+    def graph(self) -> Node:
+        """The runtime's hidden node, for graph queries (``rt.graph.get_topic_names_and_types()``).
+
+        It is spun by the executor from then on, so subscriptions and clients created on it work.
+        """
+        node = self._graph_node()
+        if not self._internal_spun:
+            self.executor.add_node(node)  # every spun node costs time in each wait: only when needed
+            self._internal_spun = True
+        return node
+
+    def settle_graph(self) -> None:
+        """Wait, once per start, until discovery has found the processes that were already running.
+
+        A new participant announces itself at start, and the others answer; ros2cli keeps a
+        daemon running for the same reason. ``%ros2`` calls this before its first graph query,
+        so a command run right after the runtime started does not show an empty graph.
+        """
+        self._graph_node()
+        if not self._graph_settled:
+            remaining = self._started_at + GRAPH_SETTLE_S - time.monotonic()
+            if remaining > 0:
+                time.sleep(remaining)
+            self._graph_settled = True
+
+    def _graph_node(self) -> Node:
+        self._ensure_running()
+        with self._lock:
+            if self._internal is None:
+                self._internal = Node(INTERNAL_NODE, context=self.context, enable_rosout=False,
+                                      start_parameter_services=False)
+            return self._internal
+
+    # ------------------------------------------------------------------ status
+    def status(self) -> dict:
+        """Versions, middleware, domain, discovery range, nodes and child processes."""
+        self._ensure_running()
+        return {
+            "rclpy": rclpy_version(),
+            "rmw": rclpy.get_rmw_implementation_identifier(),
+            "domain_id": self.domain.domain_id,
+            "domain_chosen_by": self.domain.source,
+            "discovery_range": os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"),
+            "executor": ("SingleThreadedExecutor" if self.executor_kind == "single"
+                         else "MultiThreadedExecutor"),
+            "nodes": self.nodes(),
+            "children": {n: (c.pid, "running" if c.alive else f"exited {c.returncode}")
+                         for n, c in self.children().items()},
+            "callback_errors": len(self.errors),
+        }
+
+    def show_status(self) -> None:
+        """Print :meth:`status` as an aligned table."""
+        for key, value in self.status().items():
+            if isinstance(value, list):
+                value = ", ".join(value) or "(none)"
+            elif isinstance(value, dict):
+                value = ", ".join(f"{n} (pid {p}, {s})" for n, (p, s) in value.items()) or "(none)"
+            print(f"{key:<18} {value}")
+
+    def _record_error(self, console, where: str, exc: BaseException) -> None:
+        self.errors.append(f"{where}: {type(exc).__name__}: {exc}")
+        self._router.write_error(console, where, exc)
+
+    def _log_reader_error(self, exc: BaseException) -> None:
+        self._record_error(None, "the /rosout reader", exc)
+
+    def _on_log(self, entry) -> None:
+        stamp = entry.stamp.sec + entry.stamp.nanosec * 1e-9
+        line = _console.format_log_line(entry.level, entry.name, entry.msg, stamp)
+        self._router.write_log(entry.name, line)
+
+
+def _check_executor(kind) -> None:
+    if kind not in EXECUTORS:
+        raise CourseError(f"executor must be 'single' or 'multi', got {kind!r}")
+
+
+def _quietly(function: Callable, *args, **kwargs) -> None:
+    """Run a clean-up step whose failure means there is nothing left to clean (a dead context)."""
+    try:
+        function(*args, **kwargs)
+    except Exception:
+        pass
+
+
+def _destroy_actions_of(node: Node) -> None:
+    """Destroy the action servers and clients a node still holds after ``destroy_node()``.
+
+    rclpy's ``Node.destroy_node()`` leaves them alive, so the node would linger in the graph;
+    a node class that already destroyed its own has removed them from the list.
+    """
+    from rclpy.action import ActionClient, ActionServer
+
+    for waitable in list(node.waitables):
+        if isinstance(waitable, (ActionServer, ActionClient)):
+            waitable.destroy()
+
+
+# ---------------------------------------------------------------------- module API
+_runtime: CourseRuntime | None = None
+
+
+def get_runtime(executor: str | None = None) -> CourseRuntime:
+    """Return this process's runtime, starting it on first use (or after it was stopped).
+
+    ``executor='multi'`` switches to a MultiThreadedExecutor (chapter 02); the runtime
+    restarts, and the nodes the notebook had added must be added again.
+    """
+    global _runtime
+    if executor is not None:
+        _check_executor(executor)
+    if _runtime is None:
+        _runtime = CourseRuntime(executor or "single")
+        atexit.register(shutdown_runtime)
+    elif executor is not None and executor != _runtime.executor_kind:
+        _runtime.restart(executor)
+    _runtime.start()
+    return _runtime
+
+
+def shutdown_runtime() -> None:
+    """Stop this process's runtime if it runs (the next :func:`get_runtime` starts a new one)."""
+    if _runtime is not None:
+        _runtime.stop()
+

@@ -1,0 +1,1 @@
+"""The notebook layer: what only makes sense in Jupyter (the %ros2 magics, quizzes, widgets)."""

@@ -1,0 +1,109 @@
+"""``%ros2 service list|type|find|call`` (chapter 04).
+"""
+
+from __future__ import annotations
+
+from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.msg_yaml import (
+    set_message_fields,
+    values_from_yaml,
+)
+from course_helpers.core.validation import interface_name, resolve_interface
+from course_helpers.notebook.ros2cli._common import (
+    SERVICE_WAIT_S,
+    _check_same_type,
+    _is_hidden,
+    _positive_float,
+    _topic_arg,
+    _verbs,
+)
+
+
+def add_verbs(parser):
+    verbs = _verbs(parser)
+    p = verbs.add_parser("list", help="Output a list of available services")
+    p.add_argument("-t", "--show-types", action="store_true", help="Additionally show the service type")
+    p.add_argument("-c", "--count-services", action="store_true", help="Only display the number of services")
+    p.add_argument("--include-hidden-services", action="store_true", help="Consider hidden services as well")
+    p.set_defaults(func=_service_list)
+    p = verbs.add_parser("type", help="Output a service's type")
+    p.add_argument("service_name", help="Name of the ROS service, e.g. /add_two_ints")
+    p.set_defaults(func=_service_type)
+    p = verbs.add_parser("find", help="Output a list of available services of a given type")
+    p.add_argument("service_type", help="Name of the ROS service type, e.g. std_srvs/srv/SetBool")
+    p.set_defaults(func=_service_find)
+    p = verbs.add_parser("call", help="Call a service")
+    p.add_argument("service_name", help="Name of the ROS service to call, e.g. /add_two_ints")
+    p.add_argument("service_type", help="Type of the ROS service, e.g. std_srvs/srv/SetBool")
+    p.add_argument("values", nargs="?", default="{}", help="Request values in YAML, e.g. \"{data: true}\"")
+    p.add_argument("--timeout", type=_positive_float, default=SERVICE_WAIT_S, metavar="S",
+                   help=f"Wait at most S seconds for the server and for the response "
+                        f"(default: {SERVICE_WAIT_S:g})")
+    p.set_defaults(func=_service_call)
+
+
+def _service_types(rt, service: str) -> list[str]:
+    for name, types in rt.graph.get_service_names_and_types():
+        if name == service:
+            return list(types)
+    return []
+
+
+def _service_list(rt, args):
+    pairs = sorted((n, t) for n, t in rt.graph.get_service_names_and_types()
+                   if args.include_hidden_services or not _is_hidden(n))
+    if args.count_services:
+        print(len(pairs))
+        return None
+    for name, types in pairs:
+        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+    return None
+
+
+def _service_type(rt, args):
+    service = _topic_arg(args.service_name)
+    types = _service_types(rt, service)
+    if not types:
+        return f"Unknown service '{args.service_name}'"
+    for each in types:
+        print(each)
+    return None
+
+
+def _service_find(rt, args):
+    wanted = interface_name(_service_class(args.service_type))
+    for name in sorted(n for n, types in rt.graph.get_service_names_and_types()
+                       if wanted in types and not _is_hidden(n)):
+        print(name)
+    return None
+
+
+def _service_class(type_name: str):
+    cls = resolve_interface(type_name, "srv")
+    if not hasattr(cls, "Request") or hasattr(cls, "Goal"):
+        raise CourseError(f"{type_name!r} is not a service type; services use types such as "
+                          "std_srvs/srv/SetBool or std_srvs/srv/Trigger")
+    return cls
+
+
+def _service_call(rt, args):
+    service = _topic_arg(args.service_name)
+    srv_class = _service_class(args.service_type)
+    _check_same_type("service", service, srv_class, _service_types(rt, service))
+    request = set_message_fields(srv_class.Request(), values_from_yaml(args.values, "request"),
+                                 now=lambda: rt.graph.get_clock().now().to_msg())
+    client = rt.graph.create_client(srv_class, service)
+    try:
+        if not client.service_is_ready():
+            print("waiting for service to become available...")
+            try:
+                rt.wait_until(client.service_is_ready, args.timeout, f"service {service}")
+            except WaitTimeout:
+                return (f"Service {service} ({interface_name(srv_class)}) did not become available within "
+                        f"{args.timeout:g} s; check %ros2 service list -t")
+        print(f"requester: making request: {request!r}\n")
+        response = rt.wait_for_future(client.call_async(request), args.timeout, f"the response of {service}")
+        print(f"response:\n{response!r}\n")
+    finally:
+        rt.call_in_executor(rt.graph.destroy_client, client)
+    return None

@@ -1,0 +1,593 @@
+"""``%ros2 topic list|info|type|find|echo|hz|bw|pub`` with ros2cli's ``--qos-*`` flags
+(chapter 03 for the tools, 08 for the QoS flags and incompatible-QoS warnings).
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import contextlib
+import copy
+import math
+import threading
+import time
+from collections.abc import Callable
+
+from rclpy.node import Node
+from rclpy.qos import (
+    QoSDurabilityPolicy,
+    QoSHistoryPolicy,
+    QoSPresetProfiles,
+    QoSProfile,
+    QoSReliabilityPolicy,
+    qos_policy_name_from_kind,
+)
+
+from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.msg_yaml import (
+    message_to_csv,
+    message_to_yaml,
+    plain_value,
+    set_message_fields,
+    values_from_yaml,
+)
+from course_helpers.core.validation import interface_name, resolve_interface
+from course_helpers.notebook.ros2cli._common import (
+    _TICK_S,
+    _check_same_type,
+    _is_hidden,
+    _positive_float,
+    _topic_arg,
+    _verbs,
+)
+
+ECHO_DEFAULT_S = 10.0  # topic echo stops after this long unless --count/--once/--duration says otherwise
+HZ_DEFAULT_S = 5.0  # topic hz and topic bw measure this long by default
+PUB_DEFAULT_S = 10.0  # topic pub without --once/--times publishes this long
+TYPE_DISCOVERY_S = 2.0  # how long echo/hz/bw wait for a topic's type to appear in the graph
+MATCH_WAIT_S = 5.0  # how long topic pub waits for matching subscriptions
+TRUNCATE_LENGTH = 128  # ros2cli's default for arrays and strings in echo
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+def _non_negative_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
+def _non_negative_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value >= 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
+def _add_qos_arguments(parser, entity: str, default_profile: str) -> None:
+    parser.add_argument("--qos-profile", choices=QoSPresetProfiles.short_keys(), default=default_profile,
+                        help=f"QoS preset profile to {entity} with (default: {default_profile})")
+    parser.add_argument("--qos-depth", type=_positive_int, metavar="N",
+                        help="Queue size setting to " + entity + " with (overrides the profile's depth)")
+    parser.add_argument("--qos-history", choices=QoSHistoryPolicy.short_keys(),
+                        help="History of samples setting to " + entity + " with")
+    parser.add_argument("--qos-reliability", choices=QoSReliabilityPolicy.short_keys(),
+                        help="Reliability setting to " + entity + " with")
+    parser.add_argument("--qos-durability", choices=QoSDurabilityPolicy.short_keys(),
+                        help="Durability setting to " + entity + " with")
+
+
+def add_verbs(parser):
+    verbs = _verbs(parser)
+    p = verbs.add_parser("list", help="Output a list of available topics")
+    p.add_argument("-t", "--show-types", action="store_true", help="Additionally show the topic type")
+    p.add_argument("-c", "--count-topics", action="store_true", help="Only display the number of topics")
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="List full details about each topic (publishers and subscribers)")
+    p.add_argument("--include-hidden-topics", action="store_true", help="Consider hidden topics as well")
+    p.set_defaults(func=_topic_list)
+
+    p = verbs.add_parser("info", help="Print information about a topic")
+    p.add_argument("topic_name", help="Name of the ROS topic, e.g. /chatter")
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="Print node name, type, GID and QoS profile of each publisher and subscription")
+    p.set_defaults(func=_topic_info)
+
+    p = verbs.add_parser("type", help="Print a topic's type")
+    p.add_argument("topic_name", help="Name of the ROS topic, e.g. /chatter")
+    p.set_defaults(func=_topic_type)
+
+    p = verbs.add_parser("find", help="Output a list of available topics of a given type")
+    p.add_argument("topic_type", help="Name of the ROS topic type, e.g. std_msgs/msg/String")
+    p.add_argument("-c", "--count-topics", action="store_true", help="Only display the number of topics")
+    p.set_defaults(func=_topic_find)
+
+    p = verbs.add_parser("echo", help="Output messages from a topic")
+    p.add_argument("topic_name", help="Name of the ROS topic to listen to, e.g. /chatter")
+    p.add_argument("message_type", nargs="?",
+                   help="Type of the message, e.g. std_msgs/msg/String (default: found in the graph)")
+    p.add_argument("--once", action="store_true", help="Print the first message received and stop")
+    p.add_argument("--count", type=_positive_int, metavar="N", help="Stop after N messages")
+    p.add_argument("--duration", "--timeout", dest="duration", type=_positive_float, metavar="S",
+                   help=f"Stop after S seconds (default: {ECHO_DEFAULT_S:g} s unless --count/--once)")
+    p.add_argument("--field", help="Echo a selected field of the message, e.g. 'linear.x'")
+    p.add_argument("--csv", action="store_true", help="Output all fields separated by commas")
+    p.add_argument("-f", "--full-length", action="store_true",
+                   help="Output all elements of arrays and strings (no truncation)")
+    p.add_argument("-l", "--truncate-length", type=_non_negative_int, default=TRUNCATE_LENGTH,
+                   metavar="N",
+                   help=f"Truncate arrays and strings to N elements (default: {TRUNCATE_LENGTH})")
+    p.add_argument("--no-arr", action="store_true", help="Don't print array fields of messages")
+    p.add_argument("--no-str", action="store_true", help="Don't print string fields of messages")
+    p.add_argument("--flow-style", action="store_true", help="Print messages in YAML flow style (one line)")
+    _add_qos_arguments(p, "subscribe", "sensor_data")
+    p.set_defaults(func=_topic_echo)
+
+    p = verbs.add_parser("hz", help="Print the average receiving rate")
+    p.add_argument("topic_name", help="Name of the ROS topic to listen to, e.g. /chatter")
+    p.add_argument("-w", "--window", type=_positive_int, default=10000, metavar="N",
+                   help="Window size, in number of messages, for calculating the rate (default: 10000)")
+    p.add_argument("--duration", type=_positive_float, metavar="S",
+                   help=f"Measure for S seconds (default: {HZ_DEFAULT_S:g})")
+    _add_qos_arguments(p, "subscribe", "sensor_data")
+    p.set_defaults(func=_topic_hz)
+
+    p = verbs.add_parser("bw", help="Display the bandwidth used by a topic")
+    p.add_argument("topic_name", help="Name of the ROS topic to listen to, e.g. /chatter")
+    p.add_argument("-w", "--window", type=_positive_int, default=100, metavar="N",
+                   help="Maximum window size, in number of messages (default: 100)")
+    p.add_argument("--duration", type=_positive_float, metavar="S",
+                   help=f"Measure for S seconds (default: {HZ_DEFAULT_S:g})")
+    _add_qos_arguments(p, "subscribe", "sensor_data")
+    p.set_defaults(func=_topic_bw)
+
+    p = verbs.add_parser("pub", help="Publish a message to a topic")
+    p.add_argument("topic_name", help="Name of the ROS topic to publish to, e.g. /cmd_vel")
+    p.add_argument("message_type", help="Type of the message, e.g. geometry_msgs/msg/Twist")
+    p.add_argument("values", nargs="?", default="{}",
+                   help="Values of the message in YAML, e.g. \"{linear: {x: 0.5}, angular: {z: 0.1}}\"")
+    p.add_argument("-r", "--rate", type=_positive_float, default=1.0, metavar="N",
+                   help="Publishing rate in Hz (default: 1)")
+    p.add_argument("-p", "--print", dest="print_nth", type=_non_negative_int, default=1, metavar="N",
+                   help="Print every N-th published message (0: print none; default: 1)")
+    how_long = p.add_mutually_exclusive_group()
+    how_long.add_argument("-1", "--once", action="store_true", help="Publish one message and stop")
+    how_long.add_argument("-t", "--times", type=_positive_int, metavar="N",
+                          help="Publish N messages and stop")
+    how_long.add_argument("--duration", type=_positive_float, metavar="S",
+                          help=f"Publish for S seconds (default without --once/--times: {PUB_DEFAULT_S:g})")
+    p.add_argument("-w", "--wait-matching-subscriptions", type=_non_negative_int, metavar="N",
+                   help="Wait for N matching subscriptions first (default: 1 with --once/--times, else 0)")
+    p.add_argument("--max-wait-time-secs", type=_positive_float, default=MATCH_WAIT_S, metavar="S",
+                   help=f"Longest wait for matching subscriptions (default: {MATCH_WAIT_S:g})")
+    p.add_argument("--keep-alive", type=_non_negative_float, default=0.1, metavar="S",
+                   help="Keep the publisher alive S seconds after the last message (default: 0.1)")
+    _add_qos_arguments(p, "publish", "default")
+    p.set_defaults(func=_topic_pub)
+
+
+def _topic_types(rt, topic: str) -> list[str]:
+    for name, types in rt.graph.get_topic_names_and_types():
+        if name == topic:
+            return list(types)
+    return []
+
+
+def _message_class(type_name: str):
+    cls = resolve_interface(type_name, "msg")
+    if hasattr(cls, "Request") or hasattr(cls, "Goal") or not hasattr(cls, "get_fields_and_field_types"):
+        raise CourseError(f"{type_name!r} is not a message type; topics carry messages such as "
+                          "std_msgs/msg/String or geometry_msgs/msg/Twist")
+    return cls
+
+
+def _profile_from_arguments(args) -> tuple[QoSProfile, bool]:
+    """The QoS profile the --qos-* flags describe, and whether any policy flag was given."""
+    profile = copy.copy(QoSPresetProfiles.get_from_short_key(args.qos_profile))
+    explicit = False
+    if args.qos_history is not None:
+        profile.history = QoSHistoryPolicy.get_from_short_key(args.qos_history)
+        explicit = True
+    if args.qos_depth is not None:
+        profile.depth = args.qos_depth
+        explicit = True
+    if args.qos_reliability is not None:
+        profile.reliability = QoSReliabilityPolicy.get_from_short_key(args.qos_reliability)
+        explicit = True
+    if args.qos_durability is not None:
+        profile.durability = QoSDurabilityPolicy.get_from_short_key(args.qos_durability)
+        explicit = True
+    return profile, explicit
+
+
+def _choose_subscription_qos(rt, topic: str, args) -> QoSProfile:
+    """ros2cli's choice for echo/hz/bw: the flags if given, else adapt to the publishers' offers.
+
+    Reliable only if every publisher is reliable, transient-local only if every
+    publisher is, so the subscription connects to all of them.
+    """
+    profile, explicit = _profile_from_arguments(args)
+    if explicit:
+        return profile
+    publishers = rt.graph.get_publishers_info_by_topic(topic)
+    if not publishers:
+        return profile
+    reliable = sum(p.qos_profile.reliability == QoSReliabilityPolicy.RELIABLE for p in publishers)
+    transient = sum(p.qos_profile.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL for p in publishers)
+    if reliable == len(publishers):
+        profile.reliability = QoSReliabilityPolicy.RELIABLE
+    else:
+        if reliable:
+            print("Some, but not all, publishers are offering QoSReliabilityPolicy.RELIABLE. Falling back "
+                  "to QoSReliabilityPolicy.BEST_EFFORT as it will connect to all publishers")
+        profile.reliability = QoSReliabilityPolicy.BEST_EFFORT
+    if transient == len(publishers):
+        profile.durability = QoSDurabilityPolicy.TRANSIENT_LOCAL
+    else:
+        if transient:
+            print("Some, but not all, publishers are offering QoSDurabilityPolicy.TRANSIENT_LOCAL. Falling "
+                  "back to QoSDurabilityPolicy.VOLATILE as it will connect to all publishers")
+        profile.durability = QoSDurabilityPolicy.VOLATILE
+    return profile
+
+
+@contextlib.contextmanager
+def _temporary_node(rt, verb: str):
+    """A hidden node ``_ros2cli_<verb>`` spun by the runtime's executor, destroyed with its entities at exit.
+
+    Like ros2cli's ``_ros2cli_<pid>`` node. It is added to the executor directly,
+    not with ``rt.add``: it is no node of the notebook's, needs no console widget,
+    and must not show up in ``rt.nodes()``.
+    """
+    rt.graph  # noqa: B018 - starts the runtime if it was stopped
+    node = Node(f"_ros2cli_{verb}", context=rt.context, enable_rosout=False, start_parameter_services=False)
+    executor = rt.executor
+    executor.add_node(node)
+
+    def destroy():
+        executor.remove_node(node)
+        node.destroy_node()
+
+    try:
+        yield node
+    finally:
+        rt.call_in_executor(destroy)
+
+
+def _discover_type(rt, topic: str, what: str) -> str:
+    """The single type of ``topic`` in the graph, waiting briefly for it to appear."""
+    try:
+        rt.wait_until(lambda: _topic_types(rt, topic), TYPE_DISCOVERY_S, f"topic {topic}")
+    except WaitTimeout:
+        raise CourseError(f"Could not determine the type for the passed topic {topic!r}: it is not in the "
+                          f"graph after {TYPE_DISCOVERY_S:g} s. Check %ros2 topic list, or pass the type: "
+                          f"%ros2 topic {what} {topic} std_msgs/msg/String") from None
+    types = _topic_types(rt, topic)
+    if len(types) > 1:
+        raise CourseError(f"Cannot {what} topic {topic!r}, as it contains more than one type: "
+                          f"[{', '.join(types)}]; pass the one you want after the topic name")
+    return types[0]
+
+
+def _watch_events(inbox: collections.deque):
+    """Subscription event callbacks that queue rclpy's incompatible-QoS/-type warnings for the cell.
+
+    rclpy's default callbacks would log them from the executor thread, where a
+    notebook cell never sees them; the command prints them from ``inbox`` instead.
+    """
+    from rclpy.event_handler import SubscriptionEventCallbacks
+
+    return SubscriptionEventCallbacks(
+        incompatible_qos=lambda event: inbox.append(
+            ("warning", "New publisher discovered on topic '{topic}', offering incompatible QoS. No messages "
+                        "will be received from it. Last incompatible policy: "
+                        + qos_policy_name_from_kind(event.last_policy_kind))),
+        incompatible_type=lambda _event: inbox.append(
+            ("warning", "Incompatible type on topic '{topic}', no messages will be sent to it.")))
+
+
+def _print_warning(node: Node, topic: str, template: str) -> None:
+    print(f"[WARN] [{time.time():.9f}] [{node.get_name()}]: {template.format(topic=topic)}")
+
+
+def _topic_list(rt, args):
+    pairs = sorted((n, t) for n, t in rt.graph.get_topic_names_and_types()
+                   if args.include_hidden_topics or not _is_hidden(n))
+    if args.count_topics:
+        print(len(pairs))
+        return None
+    if args.verbose:
+        for title, counter, noun in (("Published topics:", rt.graph.count_publishers, "publisher"),
+                                     ("Subscribed topics:", rt.graph.count_subscribers, "subscriber")):
+            print(title)
+            for name, types in pairs:
+                count = counter(name)
+                if count:
+                    print(f" * {name} [{', '.join(types)}] {count} {noun}{'s' if count > 1 else ''}")
+            print()
+        return None
+    for name, types in pairs:
+        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+    return None
+
+
+def _topic_info(rt, args):
+    topic = _topic_arg(args.topic_name)
+    types = _topic_types(rt, topic)
+    if not types:
+        return f"Unknown topic '{args.topic_name}'"
+    end = "\n\n" if args.verbose else "\n"
+    print(f"Type: {types[0] if len(types) == 1 else types}", end=end)
+    print(f"Publisher count: {rt.graph.count_publishers(topic)}", end=end)
+    if args.verbose:
+        for info in rt.graph.get_publishers_info_by_topic(topic):
+            print(info, end=end)
+    print(f"Subscription count: {rt.graph.count_subscribers(topic)}", end=end)
+    if args.verbose:
+        for info in rt.graph.get_subscriptions_info_by_topic(topic):
+            print(info, end=end)
+    return None
+
+
+def _topic_type(rt, args):
+    topic = _topic_arg(args.topic_name)
+    types = _topic_types(rt, topic)
+    if not types:
+        return f"Unknown topic '{args.topic_name}'"
+    for each in types:
+        print(each)
+    return None
+
+
+def _topic_find(rt, args):
+    wanted = interface_name(_message_class(args.topic_type))
+    names = sorted(n for n, types in rt.graph.get_topic_names_and_types()
+                   if wanted in types and not _is_hidden(n))
+    if args.count_topics:
+        print(len(names))
+    else:
+        for name in names:
+            print(name)
+    return None
+
+
+def _topic_echo(rt, args):
+    topic = _topic_arg(args.topic_name)
+    field = [part for part in (args.field or "").split(".") if part]
+    if args.field is not None and not field:
+        raise CourseError(f"invalid field {args.field!r}: name a field such as 'data' or 'linear.x'")
+    type_name = args.message_type or _discover_type(rt, topic, "echo")
+    msg_class = _message_class(type_name)
+    _check_same_type("topic", topic, msg_class, _topic_types(rt, topic))
+    qos = _choose_subscription_qos(rt, topic, args)
+    limit = 1 if args.once else args.count
+    duration = args.duration or ECHO_DEFAULT_S
+    truncate = None if args.full_length else args.truncate_length
+
+    inbox: collections.deque = collections.deque()
+    received = 0
+    with _temporary_node(rt, "echo") as node:
+        node.create_subscription(msg_class, topic, lambda msg: inbox.append(("msg", msg)), qos,
+                                 event_callbacks=_watch_events(inbox))
+        deadline = time.monotonic() + duration
+        while limit is None or received < limit:
+            while inbox and (limit is None or received < limit):
+                kind, item = inbox.popleft()
+                if kind == "warning":
+                    _print_warning(node, topic, item)
+                    continue
+                failure = _print_echoed(item, field, args, truncate)
+                if failure:
+                    return failure
+                received += 1
+            if time.monotonic() >= deadline or (limit is not None and received >= limit):
+                break
+            time.sleep(_TICK_S)
+    if received == 0:
+        print(f"(no message received on {topic} within {duration:g} s)")
+    elif args.duration is None and (limit is None or received < limit):
+        print(f"(echo stopped after {duration:g} s; use --count N or --duration S to change this)")
+    return None
+
+
+def _print_echoed(msg, field, args, truncate) -> str | None:
+    value = msg
+    for part in field:
+        if not hasattr(value, "get_fields_and_field_types") or part not in value.get_fields_and_field_types():
+            return f"Invalid field '{'.'.join(field)}': {interface_name(type(msg))} has no field '{part}'"
+        value = getattr(value, part)
+    if not hasattr(value, "get_fields_and_field_types"):
+        plain = plain_value(value, "", truncate, args.no_arr, args.no_str)
+        print(plain, end="\n---\n")
+    elif args.csv:
+        print(message_to_csv(value, truncate, args.no_arr, args.no_str))
+    else:
+        print(message_to_yaml(value, truncate, args.no_arr, args.no_str, args.flow_style), end="---\n")
+    return None
+
+
+class _RateMeter:
+    """ros2cli's ``topic hz`` statistics over arrival times taken in the executor thread."""
+
+    def __init__(self, window: int):
+        self.window = window
+        self.lock = threading.Lock()
+        self.times: list[int] = []  # intervals between messages, ns
+        self.last_ns = -1
+        self.last_printed_ns = 0
+        self.received = 0
+
+    def on_message(self, _raw) -> None:
+        now = time.monotonic_ns()
+        with self.lock:
+            self.received += 1
+            if self.last_ns >= 0:
+                self.times.append(now - self.last_ns)
+                if len(self.times) > self.window:
+                    self.times.pop(0)
+            self.last_ns = now
+
+    def report(self) -> str | None:
+        """A report once per second of message time, as ros2cli prints it (None: nothing new)."""
+        with self.lock:
+            if not self.times:
+                return None
+            if self.last_printed_ns == 0:
+                self.last_printed_ns = self.last_ns
+                return None
+            if self.last_ns < self.last_printed_ns + 1_000_000_000:
+                return None
+            n = len(self.times)
+            mean = sum(self.times) / n
+            rate = 1e9 / mean if mean > 0 else 0.0
+            std_dev = math.sqrt(sum((x - mean) ** 2 for x in self.times) / n)
+            self.last_printed_ns = self.last_ns
+            low, high = min(self.times), max(self.times)
+        return (f"average rate: {rate:.3f}\n\tmin: {low * 1e-9:.3f}s max: {high * 1e-9:.3f}s "
+                f"std dev: {std_dev * 1e-9:.5f}s window: {n}")
+
+
+def _topic_hz(rt, args):
+    topic = _topic_arg(args.topic_name)
+    msg_class = _message_class(_discover_type(rt, topic, "hz"))
+    qos = _choose_subscription_qos(rt, topic, args)
+    meter = _RateMeter(args.window)
+    duration = args.duration or HZ_DEFAULT_S
+    warnings: collections.deque = collections.deque()
+    with _temporary_node(rt, "hz") as node:
+        node.create_subscription(msg_class, topic, meter.on_message, qos, raw=True,
+                                 event_callbacks=_watch_events(warnings))
+        _measure(duration, meter.report, lambda: _print_warnings(node, topic, warnings))
+    if meter.received == 0:
+        print(f"(no message received on {topic} within {duration:g} s)")
+    return None
+
+
+class _BandwidthMeter:
+    """ros2cli's ``topic bw`` statistics: serialized sizes over a window of messages."""
+
+    def __init__(self, window: int):
+        self.window = window
+        self.lock = threading.Lock()
+        self.samples: collections.deque = collections.deque(maxlen=window)  # (time s, bytes)
+        self.received = 0
+        self.next_report = time.monotonic() + 1.0
+
+    def on_message(self, raw: bytes) -> None:
+        with self.lock:
+            self.received += 1
+            self.samples.append((time.monotonic(), len(raw)))
+
+    def report(self) -> str | None:
+        now = time.monotonic()
+        if now < self.next_report:
+            return None
+        self.next_report += 1.0
+        with self.lock:
+            if len(self.samples) < 2 or now <= self.samples[0][0]:
+                return None
+            sizes = [size for _, size in self.samples]
+            rate = sum(sizes) / (now - self.samples[0][0])
+        unit, scale, digits = ("B", 1, 0) if rate < 1000 else ("KB", 1e3, 2) if rate < 1e6 else ("MB", 1e6, 2)
+
+        def fmt(value):
+            return f"{value / scale:.{digits}f} {unit}"
+
+        return (f"{fmt(rate)}/s from {len(sizes)} messages\n\tMessage size mean: "
+                f"{fmt(sum(sizes) / len(sizes))} min: {fmt(min(sizes))} max: {fmt(max(sizes))}")
+
+
+def _topic_bw(rt, args):
+    topic = _topic_arg(args.topic_name)
+    msg_class = _message_class(_discover_type(rt, topic, "bw"))
+    qos = _choose_subscription_qos(rt, topic, args)
+    meter = _BandwidthMeter(args.window)
+    duration = args.duration or HZ_DEFAULT_S
+    warnings: collections.deque = collections.deque()
+    with _temporary_node(rt, "bw") as node:
+        node.create_subscription(msg_class, topic, meter.on_message, qos, raw=True,
+                                 event_callbacks=_watch_events(warnings))
+        print(f"Subscribed to [{topic}]")
+        meter.next_report = time.monotonic() + 1.0
+        _measure(duration, meter.report, lambda: _print_warnings(node, topic, warnings))
+    if meter.received == 0:
+        print(f"(no message received on {topic} within {duration:g} s)")
+    return None
+
+
+def _print_warnings(node: Node, topic: str, warnings: collections.deque) -> None:
+    while warnings:
+        _print_warning(node, topic, warnings.popleft()[1])
+
+
+def _measure(duration: float, report: Callable[[], str | None], news: Callable[[], None]) -> None:
+    deadline = time.monotonic() + duration
+    while time.monotonic() < deadline:
+        news()
+        text = report()
+        if text:
+            print(text)
+        time.sleep(_TICK_S)
+
+
+def _topic_pub(rt, args):
+    topic = _topic_arg(args.topic_name)
+    msg_class = _message_class(args.message_type)
+    _check_same_type("topic", topic, msg_class, _topic_types(rt, topic))
+    values = values_from_yaml(args.values)
+    qos, _explicit = _profile_from_arguments(args)
+    times = 1 if args.once else args.times
+    duration = args.duration or (None if times else PUB_DEFAULT_S)
+    wait_for = args.wait_matching_subscriptions
+    if wait_for is None:
+        wait_for = 1 if times else 0
+
+    def build():  # rebuilt for every message, so 'now' time stamps advance like ros2cli's
+        return set_message_fields(msg_class(), values, now=lambda: rt.graph.get_clock().now().to_msg())
+
+    build()  # bad values fail here, before anything is created
+    with _temporary_node(rt, "pub") as node:
+        publisher = node.create_publisher(msg_class, topic, qos)
+        if wait_for:
+            print(f"Waiting for at least {wait_for} matching subscription(s)...")
+            try:
+                rt.wait_until(lambda: publisher.get_subscription_count() >= wait_for,
+                              args.max_wait_time_secs, "matching subscriptions")
+            except WaitTimeout:
+                print(f"(only {publisher.get_subscription_count()} matching subscription(s) after "
+                      f"{args.max_wait_time_secs:g} s; publishing anyway)")
+        print("publisher: beginning loop")
+        period = 1.0 / args.rate
+        start = time.monotonic()
+        count = 0
+        while True:
+            msg = build()
+            publisher.publish(msg)
+            count += 1
+            if args.print_nth and count % args.print_nth == 0:
+                print(f"publishing #{count}: {msg!r}\n")
+            if times is not None and count >= times:
+                break
+            next_at = start + count * period
+            if duration is not None and next_at - start >= duration:
+                break
+            time.sleep(max(0.0, next_at - time.monotonic()))
+        time.sleep(args.keep_alive)  # let the last message reach the wire before destroying the publisher
+    if args.duration is None and times is None:
+        print(f"(pub stopped after {duration:g} s; use --once, --times N or --duration S to change this)")
+    return None
