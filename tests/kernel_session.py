@@ -13,10 +13,12 @@ from jupyter_client import KernelManager
 class KernelSession:
     """A started IPython kernel of this venv, with helpers to run cells and read outputs."""
 
-    def __init__(self, cwd: str):
+    def __init__(self, cwd: str, env: dict | None = None):
         self.stderr_file = tempfile.TemporaryFile(mode="w+")
+        extra = dict(env or {})
         env = dict(os.environ)
-        env.pop("ROS_DOMAIN_ID", None)
+        env.pop("ROS_DOMAIN_ID", None)  # the kernel reserves its own, unless the test sets one
+        env.update(extra)
         self.km = KernelManager(kernel_name="python3")
         self.km.start_kernel(cwd=cwd, env=env, stderr=self.stderr_file,
                              stdout=subprocess.DEVNULL,

@@ -389,6 +389,13 @@ class CourseRuntime(ChildProcesses):
                 time.sleep(remaining)
             self._graph_settled = True
 
+    def graph_if_running(self) -> Node | None:
+        """The hidden graph node while the runtime runs, else None (never starts the runtime)."""
+        with self._lock:
+            if not self.running:
+                return None
+        return self._graph_node()
+
     def _graph_node(self) -> Node:
         self._ensure_running()
         with self._lock:

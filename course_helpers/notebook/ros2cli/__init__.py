@@ -65,6 +65,7 @@ def run(argv: list[str] | str, rt=None) -> int:
 
         rt = get_runtime()
     try:
+        rt.settle_graph()  # the first command after a start waits until discovery has found what runs
         failure = args.func(rt, args)
     except KeyboardInterrupt:  # the cell was interrupted: the command cleaned up, ROS keeps running
         return 130

@@ -8,6 +8,7 @@ import argparse
 import math
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.names import full_name, is_hidden
 from course_helpers.core.validation import check_topic_name, interface_name
 
 SERVICE_WAIT_S = 5.0  # how long to wait for a service or action server to appear
@@ -72,7 +73,7 @@ def _positive_float(text):
 
 def _is_hidden(name: str) -> bool:
     """ROS hides names with a token starting with '_' (e.g. /fibonacci/_action/status)."""
-    return any(token.startswith("_") for token in name.split("/"))
+    return is_hidden(name)
 
 
 def _absolute(name: str) -> str:
@@ -88,12 +89,8 @@ def _topic_arg(name: str) -> str:
 
 def _graph_node_names(rt, include_hidden: bool) -> list[str]:
     """Full names of the nodes in the graph, sorted, duplicates kept (like ros2cli)."""
-    names = []
-    for name, namespace in rt.graph.get_node_names_and_namespaces():
-        if name.startswith("_") and not include_hidden:
-            continue
-        names.append(namespace.rstrip("/") + "/" + name)
-    return sorted(names)
+    return sorted(full_name(namespace, name) for name, namespace in rt.graph.get_node_names_and_namespaces()
+                  if include_hidden or not name.startswith("_"))
 
 
 def _check_same_type(kind: str, name: str, cls, types_in_graph: list[str]) -> None:

@@ -13,6 +13,7 @@ from course_helpers.core.msg_yaml import (
     values_from_yaml,
 )
 from course_helpers.core.validation import interface_name, resolve_interface
+from course_helpers.core.waiting import poll_until
 from course_helpers.notebook.ros2cli._common import (
     _TICK_S,
     SERVICE_WAIT_S,
@@ -142,14 +143,15 @@ def _action_send_goal(rt, args):
             return None
         print(f"Goal accepted with ID: {bytes(goal_handle.goal_id.uuid).hex()}\n")
         result_future = goal_handle.get_result_async()
-        while not result_future.done():
+
+        def print_feedback() -> bool:  # True once the result is in
             while feedback:
                 print(f"Feedback:\n    {message_to_yaml(feedback.popleft())}")
-            if time.monotonic() > deadline:
-                return f"No result within {args.timeout:g} s (see --timeout)"
-            time.sleep(_TICK_S)
-        while feedback:
-            print(f"Feedback:\n    {message_to_yaml(feedback.popleft())}")
+            return result_future.done()
+
+        if not poll_until(print_feedback, max(0.0, deadline - time.monotonic()), period=_TICK_S):
+            return f"No result within {args.timeout:g} s (see --timeout)"
+        print_feedback()
         result = result_future.result()
         goal_handle = None
         print(f"Result:\n    {message_to_yaml(result.result)}")

@@ -6,21 +6,14 @@ from __future__ import annotations
 
 import argparse
 import collections
-import contextlib
-import copy
 import math
-import threading
 import time
-from collections.abc import Callable
 
-from rclpy.node import Node
 from rclpy.qos import (
     QoSDurabilityPolicy,
     QoSHistoryPolicy,
     QoSPresetProfiles,
-    QoSProfile,
     QoSReliabilityPolicy,
-    qos_policy_name_from_kind,
 )
 
 from course_helpers.core.errors import CourseError, WaitTimeout
@@ -31,7 +24,8 @@ from course_helpers.core.msg_yaml import (
     set_message_fields,
     values_from_yaml,
 )
-from course_helpers.core.validation import interface_name, resolve_interface
+from course_helpers.core.validation import interface_name
+from course_helpers.core.waiting import poll_until
 from course_helpers.notebook.ros2cli._common import (
     _TICK_S,
     _check_same_type,
@@ -40,11 +34,20 @@ from course_helpers.notebook.ros2cli._common import (
     _topic_arg,
     _verbs,
 )
+from course_helpers.notebook.ros2cli.topic_graph import (
+    choose_subscription_qos,
+    discover_type,
+    message_class,
+    print_warning,
+    profile_from_arguments,
+    temporary_node,
+    topic_types,
+    watch_events,
+)
+from course_helpers.notebook.ros2cli.topic_rates import HZ_DEFAULT_S, topic_bw, topic_hz
 
 ECHO_DEFAULT_S = 10.0  # topic echo stops after this long unless --count/--once/--duration says otherwise
-HZ_DEFAULT_S = 5.0  # topic hz and topic bw measure this long by default
 PUB_DEFAULT_S = 10.0  # topic pub without --once/--times publishes this long
-TYPE_DISCOVERY_S = 2.0  # how long echo/hz/bw wait for a topic's type to appear in the graph
 MATCH_WAIT_S = 5.0  # how long topic pub waits for matching subscriptions
 TRUNCATE_LENGTH = 128  # ros2cli's default for arrays and strings in echo
 
@@ -145,7 +148,7 @@ def add_verbs(parser):
     p.add_argument("--duration", type=_positive_float, metavar="S",
                    help=f"Measure for S seconds (default: {HZ_DEFAULT_S:g})")
     _add_qos_arguments(p, "subscribe", "sensor_data")
-    p.set_defaults(func=_topic_hz)
+    p.set_defaults(func=topic_hz)
 
     p = verbs.add_parser("bw", help="Display the bandwidth used by a topic")
     p.add_argument("topic_name", help="Name of the ROS topic to listen to, e.g. /chatter")
@@ -154,7 +157,7 @@ def add_verbs(parser):
     p.add_argument("--duration", type=_positive_float, metavar="S",
                    help=f"Measure for S seconds (default: {HZ_DEFAULT_S:g})")
     _add_qos_arguments(p, "subscribe", "sensor_data")
-    p.set_defaults(func=_topic_bw)
+    p.set_defaults(func=topic_bw)
 
     p = verbs.add_parser("pub", help="Publish a message to a topic")
     p.add_argument("topic_name", help="Name of the ROS topic to publish to, e.g. /cmd_vel")
@@ -181,130 +184,6 @@ def add_verbs(parser):
     p.set_defaults(func=_topic_pub)
 
 
-def _topic_types(rt, topic: str) -> list[str]:
-    for name, types in rt.graph.get_topic_names_and_types():
-        if name == topic:
-            return list(types)
-    return []
-
-
-def _message_class(type_name: str):
-    cls = resolve_interface(type_name, "msg")
-    if hasattr(cls, "Request") or hasattr(cls, "Goal") or not hasattr(cls, "get_fields_and_field_types"):
-        raise CourseError(f"{type_name!r} is not a message type; topics carry messages such as "
-                          "std_msgs/msg/String or geometry_msgs/msg/Twist")
-    return cls
-
-
-def _profile_from_arguments(args) -> tuple[QoSProfile, bool]:
-    """The QoS profile the --qos-* flags describe, and whether any policy flag was given."""
-    profile = copy.copy(QoSPresetProfiles.get_from_short_key(args.qos_profile))
-    explicit = False
-    if args.qos_history is not None:
-        profile.history = QoSHistoryPolicy.get_from_short_key(args.qos_history)
-        explicit = True
-    if args.qos_depth is not None:
-        profile.depth = args.qos_depth
-        explicit = True
-    if args.qos_reliability is not None:
-        profile.reliability = QoSReliabilityPolicy.get_from_short_key(args.qos_reliability)
-        explicit = True
-    if args.qos_durability is not None:
-        profile.durability = QoSDurabilityPolicy.get_from_short_key(args.qos_durability)
-        explicit = True
-    return profile, explicit
-
-
-def _choose_subscription_qos(rt, topic: str, args) -> QoSProfile:
-    """ros2cli's choice for echo/hz/bw: the flags if given, else adapt to the publishers' offers.
-
-    Reliable only if every publisher is reliable, transient-local only if every
-    publisher is, so the subscription connects to all of them.
-    """
-    profile, explicit = _profile_from_arguments(args)
-    if explicit:
-        return profile
-    publishers = rt.graph.get_publishers_info_by_topic(topic)
-    if not publishers:
-        return profile
-    reliable = sum(p.qos_profile.reliability == QoSReliabilityPolicy.RELIABLE for p in publishers)
-    transient = sum(p.qos_profile.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL for p in publishers)
-    if reliable == len(publishers):
-        profile.reliability = QoSReliabilityPolicy.RELIABLE
-    else:
-        if reliable:
-            print("Some, but not all, publishers are offering QoSReliabilityPolicy.RELIABLE. Falling back "
-                  "to QoSReliabilityPolicy.BEST_EFFORT as it will connect to all publishers")
-        profile.reliability = QoSReliabilityPolicy.BEST_EFFORT
-    if transient == len(publishers):
-        profile.durability = QoSDurabilityPolicy.TRANSIENT_LOCAL
-    else:
-        if transient:
-            print("Some, but not all, publishers are offering QoSDurabilityPolicy.TRANSIENT_LOCAL. Falling "
-                  "back to QoSDurabilityPolicy.VOLATILE as it will connect to all publishers")
-        profile.durability = QoSDurabilityPolicy.VOLATILE
-    return profile
-
-
-@contextlib.contextmanager
-def _temporary_node(rt, verb: str):
-    """A hidden node ``_ros2cli_<verb>`` spun by the runtime's executor, destroyed with its entities at exit.
-
-    Like ros2cli's ``_ros2cli_<pid>`` node. It is added to the executor directly,
-    not with ``rt.add``: it is no node of the notebook's, needs no console widget,
-    and must not show up in ``rt.nodes()``.
-    """
-    rt.graph  # noqa: B018 - starts the runtime if it was stopped
-    node = Node(f"_ros2cli_{verb}", context=rt.context, enable_rosout=False, start_parameter_services=False)
-    executor = rt.executor
-    executor.add_node(node)
-
-    def destroy():
-        executor.remove_node(node)
-        node.destroy_node()
-
-    try:
-        yield node
-    finally:
-        rt.call_in_executor(destroy)
-
-
-def _discover_type(rt, topic: str, what: str) -> str:
-    """The single type of ``topic`` in the graph, waiting briefly for it to appear."""
-    try:
-        rt.wait_until(lambda: _topic_types(rt, topic), TYPE_DISCOVERY_S, f"topic {topic}")
-    except WaitTimeout:
-        raise CourseError(f"Could not determine the type for the passed topic {topic!r}: it is not in the "
-                          f"graph after {TYPE_DISCOVERY_S:g} s. Check %ros2 topic list, or pass the type: "
-                          f"%ros2 topic {what} {topic} std_msgs/msg/String") from None
-    types = _topic_types(rt, topic)
-    if len(types) > 1:
-        raise CourseError(f"Cannot {what} topic {topic!r}, as it contains more than one type: "
-                          f"[{', '.join(types)}]; pass the one you want after the topic name")
-    return types[0]
-
-
-def _watch_events(inbox: collections.deque):
-    """Subscription event callbacks that queue rclpy's incompatible-QoS/-type warnings for the cell.
-
-    rclpy's default callbacks would log them from the executor thread, where a
-    notebook cell never sees them; the command prints them from ``inbox`` instead.
-    """
-    from rclpy.event_handler import SubscriptionEventCallbacks
-
-    return SubscriptionEventCallbacks(
-        incompatible_qos=lambda event: inbox.append(
-            ("warning", "New publisher discovered on topic '{topic}', offering incompatible QoS. No messages "
-                        "will be received from it. Last incompatible policy: "
-                        + qos_policy_name_from_kind(event.last_policy_kind))),
-        incompatible_type=lambda _event: inbox.append(
-            ("warning", "Incompatible type on topic '{topic}', no messages will be sent to it.")))
-
-
-def _print_warning(node: Node, topic: str, template: str) -> None:
-    print(f"[WARN] [{time.time():.9f}] [{node.get_name()}]: {template.format(topic=topic)}")
-
-
 def _topic_list(rt, args):
     pairs = sorted((n, t) for n, t in rt.graph.get_topic_names_and_types()
                    if args.include_hidden_topics or not _is_hidden(n))
@@ -328,7 +207,7 @@ def _topic_list(rt, args):
 
 def _topic_info(rt, args):
     topic = _topic_arg(args.topic_name)
-    types = _topic_types(rt, topic)
+    types = topic_types(rt, topic)
     if not types:
         return f"Unknown topic '{args.topic_name}'"
     end = "\n\n" if args.verbose else "\n"
@@ -346,7 +225,7 @@ def _topic_info(rt, args):
 
 def _topic_type(rt, args):
     topic = _topic_arg(args.topic_name)
-    types = _topic_types(rt, topic)
+    types = topic_types(rt, topic)
     if not types:
         return f"Unknown topic '{args.topic_name}'"
     for each in types:
@@ -355,7 +234,7 @@ def _topic_type(rt, args):
 
 
 def _topic_find(rt, args):
-    wanted = interface_name(_message_class(args.topic_type))
+    wanted = interface_name(message_class(args.topic_type))
     names = sorted(n for n, types in rt.graph.get_topic_names_and_types()
                    if wanted in types and not _is_hidden(n))
     if args.count_topics:
@@ -371,33 +250,37 @@ def _topic_echo(rt, args):
     field = [part for part in (args.field or "").split(".") if part]
     if args.field is not None and not field:
         raise CourseError(f"invalid field {args.field!r}: name a field such as 'data' or 'linear.x'")
-    type_name = args.message_type or _discover_type(rt, topic, "echo")
-    msg_class = _message_class(type_name)
-    _check_same_type("topic", topic, msg_class, _topic_types(rt, topic))
-    qos = _choose_subscription_qos(rt, topic, args)
+    type_name = args.message_type or discover_type(rt, topic, "echo")
+    msg_class = message_class(type_name)
+    _check_same_type("topic", topic, msg_class, topic_types(rt, topic))
+    qos = choose_subscription_qos(rt, topic, args)
     limit = 1 if args.once else args.count
     duration = args.duration or ECHO_DEFAULT_S
     truncate = None if args.full_length else args.truncate_length
 
     inbox: collections.deque = collections.deque()
     received = 0
-    with _temporary_node(rt, "echo") as node:
+    with temporary_node(rt, "echo") as node:
         node.create_subscription(msg_class, topic, lambda msg: inbox.append(("msg", msg)), qos,
-                                 event_callbacks=_watch_events(inbox))
-        deadline = time.monotonic() + duration
-        while limit is None or received < limit:
+                                 event_callbacks=watch_events(inbox))
+        failure = None
+
+        def print_arrivals() -> bool:  # True once the command is done
+            nonlocal received, failure
             while inbox and (limit is None or received < limit):
                 kind, item = inbox.popleft()
                 if kind == "warning":
-                    _print_warning(node, topic, item)
+                    print_warning(node, topic, item)
                     continue
                 failure = _print_echoed(item, field, args, truncate)
                 if failure:
-                    return failure
+                    return True
                 received += 1
-            if time.monotonic() >= deadline or (limit is not None and received >= limit):
-                break
-            time.sleep(_TICK_S)
+            return limit is not None and received >= limit
+
+        poll_until(print_arrivals, duration, period=_TICK_S)
+        if failure:
+            return failure
     if received == 0:
         print(f"(no message received on {topic} within {duration:g} s)")
     elif args.duration is None and (limit is None or received < limit):
@@ -421,136 +304,12 @@ def _print_echoed(msg, field, args, truncate) -> str | None:
     return None
 
 
-class _RateMeter:
-    """ros2cli's ``topic hz`` statistics over arrival times taken in the executor thread."""
-
-    def __init__(self, window: int):
-        self.window = window
-        self.lock = threading.Lock()
-        self.times: list[int] = []  # intervals between messages, ns
-        self.last_ns = -1
-        self.last_printed_ns = 0
-        self.received = 0
-
-    def on_message(self, _raw) -> None:
-        now = time.monotonic_ns()
-        with self.lock:
-            self.received += 1
-            if self.last_ns >= 0:
-                self.times.append(now - self.last_ns)
-                if len(self.times) > self.window:
-                    self.times.pop(0)
-            self.last_ns = now
-
-    def report(self) -> str | None:
-        """A report once per second of message time, as ros2cli prints it (None: nothing new)."""
-        with self.lock:
-            if not self.times:
-                return None
-            if self.last_printed_ns == 0:
-                self.last_printed_ns = self.last_ns
-                return None
-            if self.last_ns < self.last_printed_ns + 1_000_000_000:
-                return None
-            n = len(self.times)
-            mean = sum(self.times) / n
-            rate = 1e9 / mean if mean > 0 else 0.0
-            std_dev = math.sqrt(sum((x - mean) ** 2 for x in self.times) / n)
-            self.last_printed_ns = self.last_ns
-            low, high = min(self.times), max(self.times)
-        return (f"average rate: {rate:.3f}\n\tmin: {low * 1e-9:.3f}s max: {high * 1e-9:.3f}s "
-                f"std dev: {std_dev * 1e-9:.5f}s window: {n}")
-
-
-def _topic_hz(rt, args):
-    topic = _topic_arg(args.topic_name)
-    msg_class = _message_class(_discover_type(rt, topic, "hz"))
-    qos = _choose_subscription_qos(rt, topic, args)
-    meter = _RateMeter(args.window)
-    duration = args.duration or HZ_DEFAULT_S
-    warnings: collections.deque = collections.deque()
-    with _temporary_node(rt, "hz") as node:
-        node.create_subscription(msg_class, topic, meter.on_message, qos, raw=True,
-                                 event_callbacks=_watch_events(warnings))
-        _measure(duration, meter.report, lambda: _print_warnings(node, topic, warnings))
-    if meter.received == 0:
-        print(f"(no message received on {topic} within {duration:g} s)")
-    return None
-
-
-class _BandwidthMeter:
-    """ros2cli's ``topic bw`` statistics: serialized sizes over a window of messages."""
-
-    def __init__(self, window: int):
-        self.window = window
-        self.lock = threading.Lock()
-        self.samples: collections.deque = collections.deque(maxlen=window)  # (time s, bytes)
-        self.received = 0
-        self.next_report = time.monotonic() + 1.0
-
-    def on_message(self, raw: bytes) -> None:
-        with self.lock:
-            self.received += 1
-            self.samples.append((time.monotonic(), len(raw)))
-
-    def report(self) -> str | None:
-        now = time.monotonic()
-        if now < self.next_report:
-            return None
-        self.next_report += 1.0
-        with self.lock:
-            if len(self.samples) < 2 or now <= self.samples[0][0]:
-                return None
-            sizes = [size for _, size in self.samples]
-            rate = sum(sizes) / (now - self.samples[0][0])
-        unit, scale, digits = ("B", 1, 0) if rate < 1000 else ("KB", 1e3, 2) if rate < 1e6 else ("MB", 1e6, 2)
-
-        def fmt(value):
-            return f"{value / scale:.{digits}f} {unit}"
-
-        return (f"{fmt(rate)}/s from {len(sizes)} messages\n\tMessage size mean: "
-                f"{fmt(sum(sizes) / len(sizes))} min: {fmt(min(sizes))} max: {fmt(max(sizes))}")
-
-
-def _topic_bw(rt, args):
-    topic = _topic_arg(args.topic_name)
-    msg_class = _message_class(_discover_type(rt, topic, "bw"))
-    qos = _choose_subscription_qos(rt, topic, args)
-    meter = _BandwidthMeter(args.window)
-    duration = args.duration or HZ_DEFAULT_S
-    warnings: collections.deque = collections.deque()
-    with _temporary_node(rt, "bw") as node:
-        node.create_subscription(msg_class, topic, meter.on_message, qos, raw=True,
-                                 event_callbacks=_watch_events(warnings))
-        print(f"Subscribed to [{topic}]")
-        meter.next_report = time.monotonic() + 1.0
-        _measure(duration, meter.report, lambda: _print_warnings(node, topic, warnings))
-    if meter.received == 0:
-        print(f"(no message received on {topic} within {duration:g} s)")
-    return None
-
-
-def _print_warnings(node: Node, topic: str, warnings: collections.deque) -> None:
-    while warnings:
-        _print_warning(node, topic, warnings.popleft()[1])
-
-
-def _measure(duration: float, report: Callable[[], str | None], news: Callable[[], None]) -> None:
-    deadline = time.monotonic() + duration
-    while time.monotonic() < deadline:
-        news()
-        text = report()
-        if text:
-            print(text)
-        time.sleep(_TICK_S)
-
-
 def _topic_pub(rt, args):
     topic = _topic_arg(args.topic_name)
-    msg_class = _message_class(args.message_type)
-    _check_same_type("topic", topic, msg_class, _topic_types(rt, topic))
+    msg_class = message_class(args.message_type)
+    _check_same_type("topic", topic, msg_class, topic_types(rt, topic))
     values = values_from_yaml(args.values)
-    qos, _explicit = _profile_from_arguments(args)
+    qos, _explicit = profile_from_arguments(args)
     times = 1 if args.once else args.times
     duration = args.duration or (None if times else PUB_DEFAULT_S)
     wait_for = args.wait_matching_subscriptions
@@ -561,7 +320,7 @@ def _topic_pub(rt, args):
         return set_message_fields(msg_class(), values, now=lambda: rt.graph.get_clock().now().to_msg())
 
     build()  # bad values fail here, before anything is created
-    with _temporary_node(rt, "pub") as node:
+    with temporary_node(rt, "pub") as node:
         publisher = node.create_publisher(msg_class, topic, qos)
         if wait_for:
             print(f"Waiting for at least {wait_for} matching subscription(s)...")
@@ -572,21 +331,24 @@ def _topic_pub(rt, args):
                 print(f"(only {publisher.get_subscription_count()} matching subscription(s) after "
                       f"{args.max_wait_time_secs:g} s; publishing anyway)")
         print("publisher: beginning loop")
-        period = 1.0 / args.rate
+        period = 1.0 / args.rate  # s
         start = time.monotonic()
         count = 0
-        while True:
-            msg = build()
-            publisher.publish(msg)
-            count += 1
-            if args.print_nth and count % args.print_nth == 0:
-                print(f"publishing #{count}: {msg!r}\n")
-            if times is not None and count >= times:
-                break
-            next_at = start + count * period
-            if duration is not None and next_at - start >= duration:
-                break
-            time.sleep(max(0.0, next_at - time.monotonic()))
+
+        def publish_due() -> bool:  # publish the messages whose time has come; True when finished
+            nonlocal count
+            while (times is None or count < times) and (duration is None or count * period < duration) \
+                    and start + count * period <= time.monotonic():
+                msg = build()
+                publisher.publish(msg)
+                count += 1
+                if args.print_nth and count % args.print_nth == 0:
+                    print(f"publishing #{count}: {msg!r}\n")
+            return ((times is not None and count >= times)
+                    or (duration is not None and count * period >= duration))
+
+        limit_s = math.inf if duration is None else duration + period
+        poll_until(publish_due, limit_s, period=min(_TICK_S, period))
         time.sleep(args.keep_alive)  # let the last message reach the wire before destroying the publisher
     if args.duration is None and times is None:
         print(f"(pub stopped after {duration:g} s; use --once, --times N or --duration S to change this)")
