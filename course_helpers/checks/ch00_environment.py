@@ -19,8 +19,10 @@ def check_environment(rt=None) -> CheckReport:
     rt = rt or get_runtime()
     report = CheckReport("Environment check")
     supported = (3, 10) <= sys.version_info[:2] <= (3, 13)
-    report.add(f"Python 3.10-3.13 (this is {sys.version_info.major}.{sys.version_info.minor})",
-               supported, hint="Create the venv with a supported Python: make PYTHON=python3.12 lab")
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    report.add("Python is a supported version (3.10-3.13)", supported,
+               "" if supported else f"this is Python {version}",  # the same output on every supported one
+               hint="Create the venv with a supported Python: make PYTHON=python3.12 lab")
     status = rt.status()
     report.add(f"rclpy {status['rclpy']} imports and its context is running", rt.context.ok(),
                hint="Restart the kernel (Kernel > Restart) and run the notebook from the top.")
