@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 import pytest
 from course_interfaces.action import Navigate
@@ -14,7 +15,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from course_helpers import CourseError
-from course_helpers.chapters.ch04_services import measure_round_trips, run_deadlock_demo
+from course_helpers.chapters.ch04_services import IsolatedExecutor, measure_round_trips, run_deadlock_demo
 from course_helpers.chapters.ch05_actions import FeedbackProgress, action_parts, status_name
 from course_helpers.chapters.ch06_parameters import (
     NodeLaunch,
@@ -25,8 +26,9 @@ from course_helpers.chapters.ch06_parameters import (
     params_file_arguments,
 )
 from course_helpers.checks.ch04_services import check_battery_server, check_relay_server
-from course_helpers.checks.ch05_actions import check_navigation_server, destroy_actions
+from course_helpers.checks.ch05_actions import check_navigation_server
 from course_helpers.checks.ch06_parameters import check_overheat_monitor
+from course_helpers.core.node_hook import hook_installed
 from course_helpers.nodes import Listener, Talker
 from course_helpers.solutions.ch04_services import BatteryMonitor, SumRelay
 from course_helpers.solutions.ch05_actions import NavigationServer
@@ -74,6 +76,49 @@ def test_deadlock_demo_reports_the_deadlock_and_leaves_the_runtime_working(rt):
     listener = rt.add(Listener)
     rt.wait_until(lambda: len(listener.heard) >= 3, 5, "messages after the deadlock demo")
     assert [t.name for t in threading.enumerate()].count("isolated-executor") == 0
+
+
+class ForeverCaller(Node):
+    """Calls a service nobody offers, synchronously, in a timer callback: it would wait forever."""
+
+    def __init__(self):
+        super().__init__("forever_caller")
+        self.calls = 0
+        self.client = self.create_client(AddTwoInts, "nobody_offers_this")
+        self.timer = self.create_timer(0.01, self.on_timer)
+
+    def on_timer(self):
+        self.calls += 1
+        self.client.call(AddTwoInts.Request(a=1, b=2))  # released (None) at teardown, then called again
+
+
+@pytest.mark.parametrize("executor", ["single", "multi"])
+def test_isolated_executor_is_torn_down_although_a_callback_hangs_in_call(rt, executor):
+    with IsolatedExecutor(executor, namespace="/hang_test") as box:
+        caller = box.add(ForeverCaller)
+        assert caller.get_fully_qualified_name() == "/hang_test/forever_caller"
+        assert not hook_installed(), "Node.__init__ is rclpy's own again after the build"
+        assert box.wait_for(lambda: caller.calls >= 1, 3.0)
+        assert not box.wait_for(lambda: caller.calls >= 2, 0.2), "the first call blocks its callback"
+        started = time.monotonic()
+    assert time.monotonic() - started < 5.0
+    assert box.context is None and not box.nodes
+    assert "isolated-executor" not in [t.name for t in threading.enumerate()]
+
+
+class BrokenAfterInit(Node):
+    def __init__(self):
+        super().__init__("broken_after_init")
+        raise RuntimeError("the constructor failed after super().__init__")
+
+
+def test_isolated_executor_leaves_no_half_built_node(rt):
+    with IsolatedExecutor("single", namespace="/broken_test") as box:
+        with pytest.raises(RuntimeError, match="constructor failed"):
+            box.add(BrokenAfterInit)
+        assert not box.nodes and not hook_installed()
+    with pytest.raises(CourseError, match="with` block"):
+        IsolatedExecutor().add(BrokenAfterInit)
 
 
 @pytest.mark.parametrize("caller, executor", [(AsyncCaller, "single"), (GroupedCaller, "multi")])
@@ -200,7 +245,7 @@ def test_progress_bar_follows_real_feedback_and_action_parts_are_listed(rt):
         assert math.isclose(progress.values[-1], 1.0, abs_tol=0.01)
         assert progress.bar.bar_style == "success"
     finally:
-        rt.call_in_executor(destroy_actions, probe)
+        rt.remove(probe)  # its ActionClient goes with it
         rt.remove(server)
         assert not [w for w in server.waitables if isinstance(w, ActionServer)], "destroy_node cleaned up"
     with pytest.raises(CourseError, match="no action"):
@@ -296,6 +341,21 @@ def test_rate_tuner_retunes_a_running_node(rt):
     assert tuner.get_rate() == 12.0
 
 
+def test_rate_tuner_widget_draws_outside_the_executor_and_stops_with_its_node(rt, monkeypatch):
+    from course_helpers.chapters.ch06_parameters import tuning
+
+    monkeypatch.setattr(tuning, "REDRAW_IDLE_S", 0.5)
+    rt.add(RateTalker, "talker", parameter_overrides=[Parameter("rate_hz", value=10.0)])
+    tuner = RateTuner("/talker", "chatter", rt=rt)
+    tuner.widget()
+    assert "rate-tuner-plot" in [t.name for t in threading.enumerate()]
+    assert 7.0 < tuner.measure(2.0) < 13.0  # drawing twice meanwhile does not hold up the talker's timer
+    assert bytes(tuner._widgets[2].value).startswith(b"\x89PNG")
+    rt.remove(tuner.node)
+    rt.wait_until(lambda: "rate-tuner-plot" not in [t.name for t in threading.enumerate()], 3.0,
+                  "the drawing thread to end after its node was removed")
+
+
 def test_launch_starts_configured_nodes_and_stops_them_together(rt, tmp_path):
     path = tmp_path / "robots.yaml"
     path.write_text("/**:\n  ros__parameters:\n    message: launched\n")
@@ -317,3 +377,13 @@ def test_launch_starts_configured_nodes_and_stops_them_together(rt, tmp_path):
                   "the launched nodes to leave the graph")
     with pytest.raises(CourseError, match="share a name"):
         launch([NodeLaunch("talker", "a"), NodeLaunch("listener", "a")], rt=rt)
+
+
+def test_launch_reports_a_node_that_fails_to_start_and_leaves_nothing_running(rt, tmp_path):
+    path = tmp_path / "wrong.yaml"
+    path.write_text("talker:\n  ros__parameters:\n    rate_hz: fast\n")  # a string for a double
+    with pytest.raises(CourseError, match="exited with code 1 before the start of node /talker") as error:
+        launch([NodeLaunch("listener", "listener"), NodeLaunch("talker", "talker", params_file=str(path))],
+               label="brokenlaunch", rt=rt)
+    assert "rate_hz" in str(error.value)  # the child's own error, from its output
+    assert not [name for name in rt.children() if name.startswith("brokenlaunch__")]

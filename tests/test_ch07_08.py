@@ -22,10 +22,12 @@ from rclpy.qos import (
 from std_msgs.msg import String
 
 from course_helpers import CourseError
-from course_helpers.chapters.ch07_dds import dds
-from course_helpers.chapters.ch08_qos import qos
+from course_helpers.chapters import ch07_dds as dds
+from course_helpers.chapters import ch08_qos as qos
+from course_helpers.chapters.ch07_dds.server import SERVER_GROUP, SERVER_LABEL, udp_port_bound
 from course_helpers.checks.ch07_dds import check_domain_plan
 from course_helpers.checks.ch08_qos import check_channel_qos, check_mismatched_subscriber
+from course_helpers.core import processes
 from course_helpers.solutions import ch07_dds as dds_solution
 from course_helpers.solutions import ch08_qos as qos_solution
 
@@ -68,18 +70,19 @@ def test_discovery_server_connects_clients_only_through_it_and_is_reaped(rt):
     env = {"ROS_DISCOVERY_SERVER": f"127.0.0.1:{port}"}
     rt.spawn("ds_talker", "course_helpers.nodes:make_talker", params={"name": "ds_talker", "rate_hz": 10.0},
              env=env)
-    listener = rt.spawn("ds_listener", "course_helpers.chapters.ch07_dds.dds:make_printing_listener",
-                        params={"name": "ds_listener"}, env=env)
+    listener = rt.spawn("ds_listener", dds.ReportingListener, params={"name": "ds_listener"}, env=env)
     time.sleep(2.0)
     assert dds.heard_lines(listener) == []  # no server yet: clients cannot find each other
     server = dds.start_discovery_server(port=port)
+    assert udp_port_bound(port) and "Server is running" in server.output()
     rt.wait_until(lambda: dds.heard_lines(listener), 10, "the listener to hear through the server")
+    assert all(line.startswith("hello ") for line in dds.heard_lines(listener))
     assert "/ds_talker" not in rt.graph_nodes()  # the kernel uses simple discovery, not the server
     pid = server.pid
     assert dds.start_discovery_server(port=port).pid != pid  # re-run: the old one is stopped first
-    assert not server.alive and server.process.returncode is not None
+    assert not server.alive and server.returncode is not None
     dds.stop_discovery_servers()
-    assert dds._servers == {}
+    assert processes.get(SERVER_LABEL, group=SERVER_GROUP) is None and not udp_port_bound(port)
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
 
@@ -193,6 +196,29 @@ def test_liveliness_lost_when_a_child_publisher_is_killed(rt):
     delay = result.first_not_alive_after_cut("automatic")
     assert delay is not None and 0.5 < delay < 2.0
     assert rt.children() == {}
+
+
+def test_reliability_stream_from_a_child_reports_when_it_has_sent_everything(rt):
+    result = qos.demo_reliability(rt, size=100_000, rate_hz=50.0, count=20)
+    assert result.received["reliable"] == list(range(20))
+    assert len(result.received["best_effort"]) <= 20
+    assert rt.children() == {} and rt.nodes() == []
+
+
+def test_liveliness_quiet_manual_publisher_is_lost_and_comes_back(rt):
+    result = qos.demo_liveliness_manual(rt, lease_s=0.5, quiet_from=0.6, quiet_until=1.8, duration_s=2.6)
+    delay = result.first_not_alive_after_cut("manual_by_topic")
+    assert delay is not None and 0.2 < delay < 1.2  # one lease (0.5 s) after it went quiet
+    assert result.lost and all(0.6 < t < 2.0 for t, _count in result.lost)  # from the child's reports
+    assert result.first_not_alive_after_cut("automatic") is None
+    assert result.changed["manual_by_topic"][-1][1] == 1  # alive again after it resumed
+
+
+def test_lifespan_late_joiner_gets_only_fresh_messages(rt):
+    result = qos.demo_lifespan(rt, lifespan_s=1.0, period_s=0.3, count=6)
+    ages = result.ages_at_join()
+    assert result.received and all(ages[i] < 1.0 + 0.15 for i in result.received)
+    assert 0 not in result.received  # about 1.5 s old when the late joiner subscribed
 
 
 def test_profiles_table_lists_the_predefined_profiles():

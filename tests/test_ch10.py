@@ -12,8 +12,9 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 
 from course_helpers import CourseError, WaitTimeout
-from course_helpers.chapters.ch10_capstone import capstone as cp
+from course_helpers.chapters import ch10_capstone as cp
 from course_helpers.checks.ch10_capstone import check_design, incompatibility
+from course_helpers.core.domains import nodes_in_domain, reserve_spare_domain
 from course_helpers.solutions.ch10_capstone import REFERENCE_DESIGN
 
 
@@ -95,8 +96,8 @@ def test_estop_stops_every_node_including_a_late_joiner(rt, robot):
 
 
 def test_lidar_obstacle_engages_the_estop_by_itself(rt):
-    rt.spawn("robot1", "course_helpers.chapters.ch10_capstone.capstone:make_robot_drivers",
-             params={"namespace": "/robot1", "camera": False}, wait_for="/robot1/safety_monitor")
+    rt.spawn("robot1", cp.make_robot_drivers, params={"namespace": "/robot1", "camera": False},
+             wait_for="/robot1/safety_monitor")
     light = rt.add(cp.StatusLight, "/robot1", console=False)
     rt.wait_until(lambda: light.state == "green", 5, "the released e-stop")
     # A person steps next to the robot: set the LIDAR's obstacle parameter from a client.
@@ -123,11 +124,13 @@ def test_two_robots_by_namespace(rt):
 
 
 def test_other_domain_is_invisible(rt):
-    domain = cp.spare_domain()
+    domain = reserve_spare_domain()
     assert domain != rt.domain.domain_id
-    rt.spawn("fleet_b", "course_helpers.chapters.ch10_capstone.capstone:make_robot_drivers",
-             params={"namespace": "/robot3", "camera": False}, env={"ROS_DOMAIN_ID": str(domain)})
-    seen = cp.nodes_in_domain(domain, expect=["/robot3/base"])
+    fleet_b = rt.spawn("fleet_b", cp.make_robot_drivers, params={"namespace": "/robot3", "camera": False},
+                       env={"ROS_DOMAIN_ID": str(domain)})
+    ready = fleet_b.wait_for_report("ready", 15, "the robot's drivers in the other domain")
+    assert "/robot3/base" in ready["nodes"]
+    seen = nodes_in_domain(domain, wait_s=8.0, expect=["/robot3/base"])
     assert "/robot3/base" in seen
     assert not any(n.startswith("/robot3") for n in rt.graph_nodes())
 
@@ -150,6 +153,7 @@ def test_design_checker_accepts_reference_and_rejects_broken(rt):
 
     wrong_endpoints = copy.deepcopy(REFERENCE_DESIGN)
     wrong_endpoints["services"][0]["server"] = "navigator"
+    wrong_endpoints["services"][0]["clients"] = ["no_such_node"]
     wrong_endpoints["actions"] = []
     wrong_endpoints["nodes"].append("perception")
     failed = {c.name for c in check_design(wrong_endpoints).criteria if not c.passed}
@@ -157,8 +161,26 @@ def test_design_checker_accepts_reference_and_rejects_broken(rt):
             "the design covers every channel the robot needs",
             "every declared service exists with its server and clients"} <= failed
 
+    strangers = copy.deepcopy(REFERENCE_DESIGN)
+    strangers["actions"][0]["clients"] = ["no_such_node"]
+    strangers["services"][0]["clients"] = ["not a name!"]
+    failed = {c.name for c in check_design(strangers).criteria if not c.passed}
+    assert failed == {"every declared service exists with its server and clients",
+                      "every declared action exists with its server and clients"}
+
     assert not check_design("not a design").passed
     assert not check_design({"topics": [{"name": "x", "type": "no/such/Type"}]}).passed
+
+
+def test_missed_frames_count_gaps_and_a_shortfall():
+    period = 1 / 30
+    every_frame = [i * period for i in range(75)]
+    assert cp.count_missed(every_frame, 30, 2.5) == 0
+    every_third = every_frame[::3]  # 25 of 75 frames: two lost in each gap, and two after the last
+    assert cp.count_missed(every_third, 30, 2.5) == 50
+    assert cp.count_missed(every_third, 30, 2.5 - 2 * period) == 2 * (len(every_third) - 1)
+    # One detection in 2.5 s shows no gap, yet 74 of the camera's 75 frames never came back.
+    assert cp.count_missed([1.0], 30, 2.5) == 74
 
 
 def test_qos_compatibility_rule():
@@ -170,12 +192,10 @@ def test_qos_compatibility_rule():
 @pytest.mark.slow
 def test_perception_fix_improves_delivered_rate(rt):
     cp.start_robot(rt, "robot1")
-    rt.spawn("perception", "course_helpers.chapters.ch10_capstone.capstone:make_perception",
-             params={"namespace": "/robot1", "detector": "python", "depth": 1},
+    rt.spawn("perception", cp.Perception, params={"namespace": "/robot1", "detector": "python", "depth": 1},
              wait_for="/robot1/perception")
     broken = cp.measure_delivery(rt, "/robot1/perception/detections", seconds=2.0)
-    rt.spawn("perception", "course_helpers.chapters.ch10_capstone.capstone:make_perception",
-             params={"namespace": "/robot1", "detector": "numpy", "depth": 5},
+    rt.spawn("perception", cp.Perception, params={"namespace": "/robot1", "detector": "numpy", "depth": 5},
              wait_for="/robot1/perception")
     fixed = cp.measure_delivery(rt, "/robot1/perception/detections", seconds=2.0)
     assert fixed.delivered_hz > 1.5 * broken.delivered_hz, (broken, fixed)
@@ -190,6 +210,3 @@ def test_bad_capstone_input_names_what_is_allowed(rt, robot):
         runner.start("x", shelf="Z9")
     with pytest.raises(CourseError, match="detector must be one of"):
         rt.add(cp.Perception, "/robot1", detector="magic")
-
-
-# ---------------------------------------------------------------------------------- chapter 09

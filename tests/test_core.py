@@ -10,7 +10,7 @@ from rclpy.node import Node
 
 from course_helpers import CourseError, WaitTimeout
 from course_helpers.core import processes
-from course_helpers.core.node_hook import build_nodes, hook_installed
+from course_helpers.core.node_hook import hook_installed
 from course_helpers.core.waiting import poll_until, wait_until
 from course_helpers.nodes import Talker, make_talker
 

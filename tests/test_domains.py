@@ -64,7 +64,7 @@ def test_two_users_kernels_never_share_a_domain():
     lock_dir = os.path.join(base, "ros2-course-domains")  # created by the first kernel, as its user
     holders = []
     try:
-        for index in range(KERNELS_PER_USER):
+        for _ in range(KERNELS_PER_USER):
             for user in users:  # interleaved, as two classes of students starting kernels
                 holders.append((user.pw_name, *_hold_domain_as(user, lock_dir)))
         chosen = []

@@ -17,7 +17,7 @@ from std_msgs.msg import String
 from test_msgs.action import Fibonacci
 
 from course_helpers import CourseError, get_runtime
-from course_helpers.nodes import Listener, Talker
+from course_helpers.nodes import Listener, Talker, make_relay
 from course_helpers.viz.graph import (
     REFRESHER_THREAD_NAME,
     Edge,
@@ -89,7 +89,7 @@ def world(rt):
     rt.add(Talker, rate_hz=5)
     rt.add(Listener)
     rt.add(Listener, name="relay_listener", topic="chatter_relayed")
-    rt.spawn("relay", "course_helpers.nodes:make_relay", wait_for="/relay")
+    rt.spawn("relay", make_relay, wait_for="/relay")
     yield rt
     stop_live_graphs()
     plt.close("all")

@@ -73,7 +73,8 @@ def test_compared_outputs_hold_nothing_host_specific(path):
             for what, value in _host_values().items():
                 if value in text:
                     found.append(f"cell {index}: {what} ({value!r})")
-            found += [f"cell {index}: a Python version ({m.group(0)!r})" for m in PYTHON_MENTION.finditer(text)]
+            found += [f"cell {index}: a Python version ({match.group(0)!r})"
+                      for match in PYTHON_MENTION.finditer(text)]
     assert not found, (f"{os.path.basename(path)} has outputs that differ on another Python or machine; "
                        "print something stable, or mark the cell NBVAL_IGNORE_OUTPUT with an assert:\n"
                        + "\n".join(found))

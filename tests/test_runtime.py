@@ -10,7 +10,7 @@ import pytest
 from std_msgs.msg import String
 
 from course_helpers import CourseError, WaitTimeout
-from course_helpers.nodes import Listener, Talker
+from course_helpers.nodes import Listener, Talker, make_relay
 
 from .conftest import run_python
 
@@ -93,7 +93,7 @@ def test_two_processes_with_automatic_domains_do_not_see_each_other(rt):
 
 
 def test_child_process_node_is_reaped(rt):
-    child = rt.spawn("relay", "course_helpers.nodes:make_relay", wait_for="/relay")
+    child = rt.spawn("relay", make_relay, wait_for="/relay")
     rt.add(Talker, rate_hz=50)
     relayed = rt.wait_for_messages("chatter_relayed", String, count=2, timeout=10)
     assert relayed[0].data.startswith("hello ")
@@ -109,7 +109,7 @@ def test_child_stopped_mid_callback_still_exits_cleanly(rt):
     rt.add(Talker, rate_hz=200)
     codes = []
     for _ in range(6):
-        child = rt.spawn("busy_relay", "course_helpers.nodes:make_relay", wait_for="/relay")
+        child = rt.spawn("busy_relay", make_relay, wait_for="/relay")
         rt.wait_for_messages("chatter_relayed", String, count=2, timeout=10)
         codes.append(rt.stop_child("busy_relay"))
         assert "Traceback" not in child.log(), child.log()

@@ -4,9 +4,9 @@
   the rmw implementation, Fast DDS and Fast CDR as this kernel runs them: package versions and
   the shared libraries actually mapped into the process (read from ``/proc/self/maps``);
 * :func:`transports_in_use` - the shared-memory segments and UDP ports Fast DDS opened here;
-* :func:`make_named_talker` and :class:`ChatterCounter` - nodes for the demo in which nodes
-  in separate processes find each other with nothing started first, and keep talking when one
-  of them is killed.
+* :class:`NamedTalker` and :class:`ChatterCounter` - nodes for the demo in which nodes in
+  separate processes find each other with nothing started first, and keep talking when one of
+  them is killed (``rt.spawn('talker_a', NamedTalker, {'name': 'talker_a'})``).
 
 Linux only (``/proc``), like the rest of the course.
 """
@@ -19,12 +19,13 @@ import tempfile
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from importlib.metadata import PackageNotFoundError, version
 
 from rclpy.node import Node
 from std_msgs.msg import String
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.versions import package_version
+from course_helpers.nodes.chatter import Talker
 
 
 @dataclass
@@ -42,25 +43,36 @@ class Layer:
         return bool(self.libraries)
 
 
-# name, role, distributions to ask for a version, regex of its shared libraries
-_LAYERS = [
-    ("rclpy", "Python client library: Node, publishers, timers, executors",
-     ("ros-jazzy-rclpy", "ros-rclpy"), r"^_rclpy_pybind11\..*\.so$"),
-    ("rcl", "ROS client library in C: names, parameters, graph; shared by rclpy and rclcpp",
-     ("ros-rcl",), r"^librcl\.so"),
-    ("rmw", "ROS middleware interface: the C API every middleware implements",
-     ("ros-rmw",), r"^librmw\.so"),
-    ("rmw_fastrtps_cpp", "the rmw implementation for eProsima Fast DDS",
-     ("ros-jazzy-rmw-fastrtps-cpp", "ros-rmw-fastrtps-cpp"), r"^librmw_fastrtps_(cpp|shared_cpp)\.so"),
-    ("Fast DDS", "the DDS implementation: discovery, QoS, readers and writers (RTPS protocol)",
-     ("ros-fastrtps",), r"^libfastrtps\.so|^libfastdds\.so"),
-    ("Fast CDR", "serialises messages into the CDR wire format",
-     ("ros-fastcdr",), r"^libfastcdr\.so"),
-]
+# name: (pip distributions to ask for its version, regex of its shared libraries)
+_LAYER_FILES = {
+    "rclpy": (("ros-jazzy-rclpy", "ros-rclpy"), r"^_rclpy_pybind11\..*\.so$"),
+    "rcl": (("ros-rcl",), r"^librcl\.so"),
+    "rmw": (("ros-rmw",), r"^librmw\.so"),
+    "rmw_fastrtps_cpp": (("ros-jazzy-rmw-fastrtps-cpp", "ros-rmw-fastrtps-cpp"),
+                         r"^librmw_fastrtps_(cpp|shared_cpp)\.so"),
+    "Fast DDS": (("ros-fastrtps",), r"^libfastrtps\.so|^libfastdds\.so"),
+    "Fast CDR": (("ros-fastcdr",), r"^libfastcdr\.so"),
+}
+_ROLES = {
+    "rclpy": "Python client library: Node, publishers, timers, executors",
+    "rcl": "ROS client library in C: names, parameters, graph; shared by rclpy and rclcpp",
+    "rmw": "ROS middleware interface: the C API every middleware implements",
+    "rmw_fastrtps_cpp": "the rmw implementation for eProsima Fast DDS",
+    "Fast DDS": "the DDS implementation: discovery, QoS, readers and writers (RTPS protocol)",
+    "Fast CDR": "serialises messages into the CDR wire format",
+}
 
 
 def loaded_libraries(pattern: str | None = None, pid: int | str = "self") -> list[str]:
-    """Basenames of the shared libraries mapped into a process, sorted (optionally regex-filtered)."""
+    """Basenames of the shared libraries mapped into a process.
+
+    Args:
+        pattern: a regular expression; only the names it matches are returned (all if None).
+        pid: the process ID to look at, or 'self' for this process.
+
+    Returns:
+        The sorted basenames, e.g. ``['libfastrtps.so.2.14', 'librmw_fastrtps_cpp.so']``.
+    """
     try:
         with open(f"/proc/{pid}/maps", encoding="utf-8") as handle:
             lines = handle.read().splitlines()
@@ -75,33 +87,24 @@ def loaded_libraries(pattern: str | None = None, pid: int | str = "self") -> lis
     return sorted(n for n in names if regex is None or regex.search(n))
 
 
-def package_version(*distributions: str) -> str:
-    """The version of the first installed pip distribution among ``distributions``."""
-    for dist in distributions:
-        try:
-            return version(dist)
-        except PackageNotFoundError:
-            continue
-    return "not installed"
-
-
 def layer_stack() -> list[Layer]:
-    """The layers from rclpy down to Fast CDR, with versions and the libraries loaded in this process.
+    """The layers from rclpy down to Fast CDR, top first, as this process runs them.
 
-    Start the runtime first (``get_runtime()``): the middleware libraries load when the first
-    context is initialised.
+    Returns one :class:`Layer` per layer with its version and the libraries loaded here.
+    Start the runtime first (``get_runtime()``): the middleware libraries load when the
+    first context is initialised.
     """
     libraries = loaded_libraries()
     layers = []
-    for name, role, dists, pattern in _LAYERS:
+    for name, (dists, pattern) in _LAYER_FILES.items():
         regex = re.compile(pattern)
-        layers.append(Layer(name, role, dists[-1], package_version(*dists),
+        layers.append(Layer(name, _ROLES[name], dists[-1], package_version(*dists),
                             [lib for lib in libraries if regex.search(lib)]))
     return layers
 
 
 def show_layer_stack(layers: list[Layer] | None = None) -> None:
-    """Print the layer table: layer, version, loaded libraries, role."""
+    """Print ``layers`` (default: :func:`layer_stack`) as a table: layer, version, libraries, role."""
     layers = layers or layer_stack()
     for layer in layers:
         libs = ", ".join(layer.libraries) or "NOT LOADED"
@@ -128,7 +131,11 @@ class Transports:
 
 
 def classify_port(port: int, domain_id: int) -> str:
-    """What a UDP port is for, by the RTPS port mapping (base 7400 + 250 x domain)."""
+    """What a UDP ``port`` of a participant in ``domain_id`` is for, as a short phrase.
+
+    Follows the RTPS port mapping (base 7400 + 250 x domain), e.g. 'discovery, unicast
+    (participant 0)'.
+    """
     base = 7400 + 250 * domain_id
     if port == base:
         return "discovery, multicast"
@@ -147,10 +154,18 @@ def classify_port(port: int, domain_id: int) -> str:
 def transports_in_use(domain_id: int | None = None) -> Transports:
     """The shared-memory files mapped and the UDP ports bound by this process.
 
-    Fast DDS keeps the shared-memory segments and ports in ``/dev/shm/fastrtps_*`` and
-    ``/dev/shm/fastdds_*``; UDP sockets are found by matching this process's socket file
-    descriptors with ``/proc/self/net/udp``.
+    Args:
+        domain_id: the ROS domain, to name the ports (default: ``ROS_DOMAIN_ID``).
+
+    Returns:
+        A :class:`Transports`. Fast DDS keeps the shared-memory segments and ports in
+        ``/dev/shm/fastrtps_*`` and ``/dev/shm/fastdds_*``; UDP sockets are found by matching this
+        process's socket file descriptors with ``/proc/self/net/udp``. The runtime's DDS
+        participant is created first if no node has created it yet.
     """
+    from course_helpers.core.runtime import get_runtime
+
+    get_runtime().graph_nodes()  # rmw creates the participant (and its transports) with the first node
     if domain_id is None:
         domain_id = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
     shm = set()
@@ -183,7 +198,7 @@ def transports_in_use(domain_id: int | None = None) -> Transports:
 
 
 def show_transports(transports: Transports | None = None) -> None:
-    """Print the shared-memory files and UDP ports of :func:`transports_in_use`."""
+    """Print the shared-memory files and UDP ports of ``transports`` (default: :func:`transports_in_use`)."""
     t = transports or transports_in_use()
     print(f"shared memory (/dev/shm), {len(t.shm_files)} files mapped:")
     for name in t.shm_files:
@@ -194,7 +209,11 @@ def show_transports(transports: Transports | None = None) -> None:
 
 
 def draw_layer_stack(layers: list[Layer] | None = None, transports: Transports | None = None):
-    """Draw the stack as boxes, top (your code) to bottom (transport), labelled with live facts."""
+    """Draw the stack as boxes, top (your code) to bottom (transport), labelled with live facts.
+
+    Takes :func:`layer_stack` and :func:`transports_in_use` results (measured if None); returns
+    the matplotlib figure.
+    """
     import matplotlib.pyplot as plt
     from matplotlib.patches import FancyBboxPatch
 
@@ -243,6 +262,8 @@ _LEASE_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 def short_lease_env(lease_s: float = 2.0) -> dict[str, str]:
     """Environment for ``rt.spawn(..., env=...)``: the child's participant announces a short lease.
 
+    Takes the lease in seconds (0.5..60); returns ``{'FASTRTPS_DEFAULT_PROFILES_FILE': path}``.
+
     Peers drop a participant that stays silent longer than its lease. Fast DDS's default is
     20 s; a 2 s lease lets the notebook show a crashed node leaving the graph without a long
     wait. The lease is set in a Fast DDS XML profile (``FASTRTPS_DEFAULT_PROFILES_FILE``);
@@ -265,22 +286,23 @@ def short_lease_env(lease_s: float = 2.0) -> dict[str, str]:
     return {"FASTRTPS_DEFAULT_PROFILES_FILE": path}
 
 
-def make_named_talker(name: str = "talker", topic: str = "chatter", rate_hz: float = 10.0) -> Node:
-    """Child-process target: a node that publishes '<name>: <count>' on ``topic`` at ``rate_hz``."""
-    node = Node(name)
-    publisher = node.create_publisher(String, topic, 10)
-    count = [0]
+class NamedTalker(Talker):
+    """A :class:`~course_helpers.nodes.chatter.Talker` whose messages say who sent them.
 
-    def tick():
-        publisher.publish(String(data=f"{name}: {count[0]}"))
-        count[0] += 1
+    Publishes '<node name>: <count>' (std_msgs/String) on ``topic`` at ``rate_hz`` (default 10 Hz),
+    so a :class:`ChatterCounter` can tell the senders apart. Takes Talker's arguments.
+    """
 
-    node.talk_timer = node.create_timer(1.0 / rate_hz, tick)
-    return node
+    def __init__(self, name: str = "talker", topic: str = "chatter", rate_hz: float = 10.0, **kwargs):
+        super().__init__(name=name, topic=topic, rate_hz=rate_hz, **kwargs)
+
+    def tick(self) -> None:
+        self.publisher.publish(String(data=f"{self.get_name()}: {self.count}"))
+        self.count += 1
 
 
 class ChatterCounter(Node):
-    """Counts the messages on a String topic per sender (the text before ':')."""
+    """Counts the messages on a String ``topic`` per sender (the text before ':') in ``counts``."""
 
     def __init__(self, name: str = "chatter_counter", topic: str = "chatter"):
         super().__init__(name)
@@ -292,45 +314,9 @@ class ChatterCounter(Node):
 
 
 def count_during(counter: ChatterCounter, seconds: float = 1.0) -> dict[str, int]:
-    """Messages per sender that ``counter`` heard during the next ``seconds`` seconds."""
+    """Listen for ``seconds`` seconds; return the messages per sender that the running ``counter``
+    heard meanwhile (``{'talker_a': 15, 'talker_b': 0}``, senders sorted)."""
     before = Counter(counter.counts)
     time.sleep(seconds)
     after = Counter(counter.counts)
     return {sender: after[sender] - before[sender] for sender in sorted(set(after) | set(before))}
-
-
-# ---------------------------------------------------------------------- the exercise
-def check_crash_exercise(rt, counter: ChatterCounter, window_s: float = 1.5):
-    """Check chapter 01's exercise: a third talker process runs and talker_b's process was killed.
-
-    Expected state: a child labelled ``talker_c`` runs ``/talker_c`` (started with
-    :func:`make_named_talker`); the child ``talker_b`` has been killed; ``counter`` (a running
-    :class:`ChatterCounter`) now hears talker_c and nobody else.
-    """
-    from course_helpers.checks import CheckReport
-
-    report = CheckReport("Exercise: a third talker, and a second crash")
-    children = rt.children()
-    c = children.get("talker_c")
-    report.add("a child process labelled 'talker_c' is running", c is not None and c.alive,
-               "" if c is not None else "no child labelled talker_c",
-               hint="rt.spawn('talker_c', 'course_helpers.chapters.ch01_architecture:make_named_talker', "
-                    "{'name': 'talker_c'}, wait_for='/talker_c')")
-    in_graph = "/talker_c" in rt.graph_nodes()
-    report.add("node /talker_c is in the ROS graph", in_graph,
-               hint="Pass {'name': 'talker_c'} so the node gets that name.")
-    b = children.get("talker_b")
-    killed = b is not None and not b.alive
-    report.add("talker_b's process is dead", killed,
-               "" if killed else ("talker_b is still running" if b is not None
-                                  else "no child labelled talker_b: start it again, then kill it"),
-               hint="Keep the ChildNode that rt.spawn returned and call its kill() method.")
-    heard = count_during(counter, window_s)
-    others = sorted(s for s, n in heard.items() if n and s != "talker_c")
-    report.add("the counter hears talker_c", heard.get("talker_c", 0) >= 3,
-               "" if heard.get("talker_c", 0) >= 3 else "no messages from talker_c",
-               hint="talker_c must publish on 'chatter', the topic the counter listens to.")
-    report.add("the counter hears nobody else", not others,
-               f"still hearing {', '.join(others)}" if others else "",
-               hint="Both talker_a and talker_b must be dead.")
-    return report

@@ -1,7 +1,7 @@
 """Timing measurements of chapter 02 (nodes and executors), and their plots.
 
-* :func:`spin_for` spins a node in a dedicated single- or multi-threaded executor for a few
-  seconds, then destroys it: the notebook compares executors and callback groups with it.
+* :func:`spin_for` / :func:`spinning_alone` spin a node in a dedicated single- or multi-threaded
+  executor for a few seconds, then destroy it, to compare executors and callback groups.
 * :func:`tick_gaps` / :func:`plot_tick_gaps` turn a timer's tick times into gaps and draw them.
 * :func:`measure_timer_jitter` / :func:`plot_jitter` measure how regularly a timer fires, with
   and without a CPU-heavy callback competing for the same executor.
@@ -13,77 +13,69 @@ move, so the notebook asserts only the qualitative result (who stalls, who stays
 from __future__ import annotations
 
 import statistics
-import threading
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from itertools import pairwise
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.executors import spinning_alone as core_spinning_alone
 
 EXECUTORS = ("single", "multi")
+
+
+@contextmanager
+def spinning_alone(node_factory: Callable[..., Node], executor: str = "single", threads: int = 2,
+                   **kwargs):
+    """Build a node and spin it in a fresh executor of its own while the ``with`` block runs.
+
+    Args:
+        node_factory: a Node subclass (or a function returning a node), called with ``kwargs``.
+        executor: 'single' (SingleThreadedExecutor) or 'multi' (MultiThreadedExecutor with
+            ``threads`` threads).
+
+    Yields:
+        The node. It joins the kernel's context, like ``rt.add``, but its executor spins nothing
+        else, so a measurement is not mixed with the notebook's other nodes. After the block the
+        executor is shut down and the node destroyed; then the first exception a callback raised
+        is raised again.
+    """
+    from course_helpers.core.runtime import get_runtime
+
+    if executor not in EXECUTORS:
+        raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
+    with core_spinning_alone(get_runtime(), _checked_factory(node_factory), executor, threads,
+                             name=f"spin_for-{executor}", **kwargs) as node:
+        yield node
+
+
+def _checked_factory(node_factory):
+    def build(**kwargs):
+        node = node_factory(**kwargs)
+        if not isinstance(node, Node):
+            raise CourseError(f"{node_factory!r} returned {type(node).__name__}, not an rclpy Node")
+        return node
+
+    return build
 
 
 def spin_for(node_factory: Callable[..., Node], duration_s: float = 2.0, executor: str = "single",
              threads: int = 2, **kwargs) -> Node:
     """Build a node, spin it alone in a fresh executor for ``duration_s`` seconds, destroy it.
 
-    ``node_factory`` is a Node subclass (or a function returning a node); ``kwargs`` go to it.
-    ``executor`` is 'single' (SingleThreadedExecutor) or 'multi' (MultiThreadedExecutor with
-    ``threads`` threads). The node joins the kernel's context, like ``rt.add``, but is spun by
-    its own executor so the measurement is not mixed with the notebook's other nodes. Returns
-    the (destroyed) node so its recorded attributes can be read.
+    Takes what :func:`spinning_alone` takes, and ``duration_s`` in (0, 30] seconds. Returns the
+    (destroyed) node, so its recorded attributes can be read; the first exception a callback
+    raised is raised again instead.
     """
-    from course_helpers.core.runtime import get_runtime
-
-    if executor not in EXECUTORS:
-        raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
     if not 0 < duration_s <= 30:
         raise CourseError(f"duration_s must be in (0, 30] seconds, got {duration_s!r}")
-    rt = get_runtime()
-    node = rt.build(node_factory, **kwargs)
-    if not isinstance(node, Node):
-        raise CourseError(f"{node_factory!r} returned {type(node).__name__}, not an rclpy Node")
-    if executor == "single":
-        spinner = SingleThreadedExecutor(context=rt.context)
-    else:
-        spinner = MultiThreadedExecutor(num_threads=threads, context=rt.context)
-    spinner.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set() and rt.context.ok():
-            spinner.spin_once(timeout_sec=0.05)
-
-    thread = threading.Thread(target=spin, name=f"spin_for-{executor}", daemon=True)
-    thread.start()
-    try:
-        time.sleep(duration_s)
-    finally:
-        stop.set()
-        thread.join(timeout=5)
-        spinner.shutdown(timeout_sec=5)
-        _finish_pending_callbacks(spinner)
-        node.destroy_node()
+    with spinning_alone(node_factory, executor, threads, **kwargs) as node:
+        time.sleep(duration_s)  # the measurement window
     return node
-
-
-def _finish_pending_callbacks(spinner) -> None:
-    """Let callbacks already handed to a multi-threaded executor's pool finish before destruction.
-
-    rclpy's ``MultiThreadedExecutor.shutdown`` does not wait for its thread pool; a callback
-    still queued there would run after the node is destroyed and fail.
-    """
-    pool = getattr(spinner, "_executor", None)
-    if pool is not None:
-        pool.shutdown(wait=True)
-    for task in getattr(spinner, "_futures", []):
-        if task.done():
-            task.exception()  # mark any error as seen
 
 
 # ---------------------------------------------------------------------- a blocking callback
@@ -131,7 +123,8 @@ class GapResult:
 
 
 def tick_gaps(ticks: list[float], period_s: float, label: str = "") -> GapResult:
-    """Gaps between consecutive tick times (the first tick is the reference)."""
+    """A :class:`GapResult` of the gaps between consecutive ``ticks`` (seconds) of a timer of
+    ``period_s``; ``label`` names the configuration."""
     gaps = [b - a for a, b in pairwise(ticks)]
     return GapResult(label, period_s, gaps, list(ticks))
 
@@ -141,8 +134,17 @@ def measure_blocking(executor: str = "single", separate_groups: bool = False, du
                      node_class: Callable[..., Node] = ControlLoopWithPlanner) -> GapResult:
     """Run a control loop next to a blocking planner and return the control timer's gaps.
 
-    ``node_class`` must accept ``separate_groups`` and record ``ticks`` (like
-    :class:`ControlLoopWithPlanner`); the notebook passes its own class.
+    Args:
+        executor: 'single' or 'multi' (see :func:`spin_for`).
+        separate_groups: passed to ``node_class``: its own callback group for each timer.
+        duration_s: how long to spin, seconds.
+        block_s, control_period_s: the planner's blocking time and the control period, seconds;
+            ``control_period_s`` is used only if the node has no ``period_s`` attribute.
+        node_class: must accept ``separate_groups`` and record ``ticks`` (like
+            :class:`ControlLoopWithPlanner`); the notebook passes its own class.
+
+    Returns:
+        A :class:`GapResult` labelled with the configuration.
     """
     node = spin_for(node_class, duration_s, executor, separate_groups=separate_groups)
     groups = "separate groups" if separate_groups else "one default group"
@@ -151,7 +153,8 @@ def measure_blocking(executor: str = "single", separate_groups: bool = False, du
 
 
 def plot_tick_gaps(results: list[GapResult], block_s: float | None = None):
-    """One row per configuration: every control tick as a tick mark, and the gaps over time."""
+    """Draw one row per :class:`GapResult`: each gap as a line at its tick's time, the period and
+    (if given) the blocking time ``block_s`` as reference lines. Returns the matplotlib figure."""
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(len(results), 1, figsize=(9, 1.6 + 1.3 * len(results)), sharex=True,
@@ -241,8 +244,17 @@ def measure_timer_jitter(period_s: float = 0.01, duration_s: float = 2.0, heavy_
                          separate_groups: bool = False, label: str | None = None) -> JitterResult:
     """Fire a timer every ``period_s`` for ``duration_s`` and return the measured intervals.
 
-    ``heavy_ms > 0`` adds a second timer (every ``heavy_period_s``) whose callback keeps the CPU
-    busy for that many milliseconds, in the same executor.
+    Args:
+        period_s: the timer's period, 0.001..1 s.
+        duration_s: how long to measure, seconds.
+        heavy_ms: > 0 adds a second timer (every ``heavy_period_s`` s) whose callback keeps the CPU
+            busy for that many milliseconds, in the same executor.
+        executor, separate_groups: as in :func:`spin_for`; ``separate_groups`` gives the heavy
+            timer a callback group of its own.
+        label: the result's name (default: 'idle' or a description of the heavy callback).
+
+    Returns:
+        A :class:`JitterResult`.
     """
     if not 0.001 <= period_s <= 1:
         raise CourseError(f"period_s must be 0.001..1 s, got {period_s!r}")
@@ -258,7 +270,8 @@ def measure_timer_jitter(period_s: float = 0.01, duration_s: float = 2.0, heavy_
 
 
 def plot_jitter(results: list[JitterResult], bins: int = 60):
-    """One histogram of timer intervals per measurement, stacked on a shared axis (ms)."""
+    """Draw one histogram of timer intervals (ms) per :class:`JitterResult`, with ``bins`` bins on a
+    shared axis; returns the matplotlib figure."""
     import matplotlib.pyplot as plt
 
     all_ms = [i * 1e3 for r in results for i in r.intervals_s]
@@ -281,47 +294,3 @@ def plot_jitter(results: list[JitterResult], bins: int = 60):
     fig.suptitle("Timer jitter: the same timer, idle and beside a CPU-heavy callback", fontsize=11)
     fig.tight_layout()
     return fig
-
-
-# ---------------------------------------------------------------------- the exercise
-def check_responsive_robot(node_class, duration_s: float = 2.5, threads: int = 3):
-    """Check chapter 02's exercise: a heartbeat that stays regular beside slow callbacks.
-
-    ``node_class()`` must build a node with three timers: ``heartbeat`` every 0.1 s recording
-    ``self.beats`` (time.monotonic()), ``camera`` every 0.2 s sleeping 0.05 s and counting
-    ``self.frames``, ``planner`` every 0.5 s sleeping 0.3 s and counting ``self.plans``. The
-    checker spins it in a MultiThreadedExecutor with ``threads`` threads.
-    """
-    from course_helpers.checks import CheckReport
-
-    report = CheckReport("Exercise: keep the heartbeat regular")
-    node = report.run("the node starts and spins",
-                      lambda: spin_for(node_class, duration_s, "multi", threads=threads),
-                      hint="Run the class cell first; __init__ takes no arguments.")
-    if node is None:
-        return report
-    report.add("the node starts and spins", True)
-    beats = list(getattr(node, "beats", []))
-    frames, plans = getattr(node, "frames", 0), getattr(node, "plans", 0)
-    gaps = [b - a for a, b in pairwise(beats)]
-    worst = max(gaps) if gaps else float("inf")
-    enough = len(beats) >= 0.8 * duration_s / 0.1
-    report.add("the heartbeat fired about every 0.1 s", enough,
-               "" if enough else "fewer than 80% of the expected beats",
-               hint="Record time.monotonic() in self.beats at every heartbeat.")
-    if worst < 0.15:
-        detail = ""
-    elif worst >= 0.25:
-        detail = "a gap of 0.25 s or more: the heartbeat waited for the planner"
-    else:
-        detail = "a gap between 0.15 and 0.25 s"
-    report.add("no gap between heartbeats above 0.15 s", worst < 0.15, detail,
-               hint="Callbacks in one mutually exclusive group never overlap: give the heartbeat "
-                    "its own callback group, separate from the slow callbacks.")
-    report.add("the camera callback kept running (>= 5 frames)", frames >= 5,
-               "" if frames >= 5 else "fewer than 5 frames",
-               hint="Keep the 0.2 s camera timer and count self.frames.")
-    report.add("the planner still ran (>= 2 plans)", plans >= 2,
-               "" if plans >= 2 else "fewer than 2 plans",
-               hint="Keep the 0.5 s planner with its 0.3 s sleep; making it fast is not the fix.")
-    return report

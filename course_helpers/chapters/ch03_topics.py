@@ -1,15 +1,15 @@
-"""Sensor and command nodes for chapter 03 (topics), in the kernel or in child processes.
+"""Sensor and command nodes of chapter 03 (topics), in the kernel or in child processes.
 
 * :class:`TemperatureSensor` - ``std_msgs/msg/Float64`` on ``sensor/temperature``, a sine wave in °C
-  (:func:`make_temperature_sensor` starts one in a child process);
+  (``rt.spawn('thermo', TemperatureSensor, {'name': 'thermo'})`` runs one in a child process);
 * :class:`CmdVelPublisher` - ``geometry_msgs/msg/Twist`` on ``cmd_vel`` (m/s, rad/s);
 * :class:`ImuPublisher` - ``sensor_msgs/msg/Imu`` on ``imu`` with a tilt you can set;
-* :func:`make_sensor_array` - N IMU nodes at R Hz (the throughput exercise), with a service that
-  reports how many messages they really sent;
+* :func:`make_sensor_array` - N IMU nodes at R Hz (the throughput exercise), and a node that
+  reports over the process channel how many messages they really sent (:func:`sent_rate` reads it);
 * :func:`measure_bandwidth` / :func:`plot_bandwidth` - the message-size-versus-rate demo.
 
 Every node is written the way a student would write it: a Node subclass, a timer instead of a sleep
-loop, units in comments. The ``make_*`` functions are child-process targets for ``rt.spawn``.
+loop, units in comments.
 """
 
 from __future__ import annotations
@@ -23,15 +23,19 @@ from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64, UInt8MultiArray
-from std_srvs.srv import Trigger
 
+from course_helpers.core.channel import report
 from course_helpers.core.errors import CourseError
+from course_helpers.core.executors import spinning_alone
+from course_helpers.core.names import full_name
+from course_helpers.core.units import format_bytes
+from course_helpers.core.waiting import wait_until
 
 GRAVITY = 9.80665  # m/s²
 
 
 def quaternion_from_rpy(roll_deg: float, pitch_deg: float, yaw_deg: float = 0.0):
-    """Return the unit quaternion (x, y, z, w) of a roll-pitch-yaw rotation given in degrees.
+    """Return the unit quaternion ``(x, y, z, w)`` of a roll-pitch-yaw rotation given in degrees.
 
     The rotation is yaw about z, then pitch about y, then roll about x (the ROS convention).
     """
@@ -45,7 +49,8 @@ def quaternion_from_rpy(roll_deg: float, pitch_deg: float, yaw_deg: float = 0.0)
 
 def imu_message(roll_deg: float = 0.0, pitch_deg: float = 0.0, yaw_deg: float = 0.0,
                 frame_id: str = "imu_link") -> Imu:
-    """An Imu message of a robot standing still with this attitude (orientation and gravity)."""
+    """An Imu message of a robot standing still with this attitude (degrees): its orientation, and
+    gravity as a still accelerometer measures it; the header's ``frame_id`` is ``frame_id``."""
     msg = Imu()
     msg.header.frame_id = frame_id
     x, y, z, w = quaternion_from_rpy(roll_deg, pitch_deg, yaw_deg)
@@ -60,12 +65,17 @@ def imu_message(roll_deg: float = 0.0, pitch_deg: float = 0.0, yaw_deg: float = 
 
 
 def message_size(msg) -> int:
-    """Bytes of ``msg`` on the wire: its CDR serialization, as DDS sends it (payload only)."""
+    """Bytes of ``msg`` (any ROS message) on the wire: its CDR serialization, as DDS sends it
+    (payload only)."""
     return len(serialize_message(msg))
 
 
 class TemperatureSensor(Node):
-    """Publishes a temperature in °C that follows a sine wave (std_msgs/Float64)."""
+    """Publishes a temperature in °C that follows a sine wave (std_msgs/Float64) on ``topic``.
+
+    ``mean_c ± amplitude_c`` with a period of ``period_s`` seconds, ``rate_hz`` messages a second.
+    Several sensors may share one topic.
+    """
 
     def __init__(self, name: str = "temperature_sensor", topic: str = "sensor/temperature",
                  rate_hz: float = 10.0, mean_c: float = 25.0, amplitude_c: float = 5.0,
@@ -80,14 +90,6 @@ class TemperatureSensor(Node):
         t = time.monotonic() - self.start  # seconds since start
         celsius = self.mean_c + self.amplitude_c * math.sin(2 * math.pi * t / self.period_s)
         self.publisher.publish(Float64(data=celsius))
-
-
-def make_temperature_sensor(name: str = "temperature_sensor", mean_c: float = 25.0,
-                            amplitude_c: float = 5.0, rate_hz: float = 10.0,
-                            topic: str = "sensor/temperature") -> Node:
-    """Child-process target: a :class:`TemperatureSensor` (several can share one topic)."""
-    return TemperatureSensor(name=name, topic=topic, rate_hz=rate_hz, mean_c=mean_c,
-                             amplitude_c=amplitude_c)
 
 
 class CmdVelPublisher(Node):
@@ -133,7 +135,7 @@ class ImuPublisher(Node):
 
 # ---------------------------------------------------------------------- the throughput exercise
 class ImuSensor(Node):
-    """One IMU of a sensor array: an Imu message on ``~/data`` at ``rate_hz`` (counts what it sent)."""
+    """One IMU of a sensor array: an Imu message on ``~/data`` at ``rate_hz``; ``sent`` counts them."""
 
     def __init__(self, name: str, rate_hz: float = 100.0, namespace: str = "sensors"):
         super().__init__(name, namespace=namespace)
@@ -148,79 +150,110 @@ class ImuSensor(Node):
         self.sent += 1
 
 
-SENT_COUNT_SERVICE = "/sensor_array/sent_count"
+SENT_REPORT_PERIOD_S = 0.1  # how often the sensor array reports its count on the channel
+
+
+class SentCounter(Node):
+    """The bookkeeper of a sensor array: reports the messages its ``sensors`` sent, over the channel.
+
+    Every ``period_s`` seconds it sends ``report('sent', count=N)`` to the kernel: the ground
+    truth that :func:`sent_rate` turns into messages per second.
+    """
+
+    def __init__(self, sensors: list[ImuSensor], name: str = "sensor_array",
+                 period_s: float = SENT_REPORT_PERIOD_S):
+        super().__init__(name)
+        self.sensors = sensors
+        self.timer = self.create_timer(period_s, self.report_count)
+
+    def report_count(self) -> None:
+        report("sent", count=sum(sensor.sent for sensor in self.sensors))
 
 
 def sensor_topics(count: int = 10, namespace: str = "sensors") -> list[str]:
-    """The topics of :func:`make_sensor_array`: ``/sensors/imu_0/data`` ... (sorted by index)."""
-    return [f"/{namespace.strip('/')}/imu_{i}/data" for i in range(count)]
+    """The topics of :func:`make_sensor_array`: ``['/sensors/imu_0/data', ...]``, sorted by index."""
+    return [full_name("/" + namespace.strip("/"), f"imu_{i}/data") for i in range(count)]
 
 
 def make_sensor_array(count: int = 10, rate_hz: float = 100.0, namespace: str = "sensors") -> list[Node]:
-    """Child-process target: ``count`` IMU nodes publishing at ``rate_hz`` each, and a bookkeeper.
+    """Child-process target: ``count`` :class:`ImuSensor` nodes at ``rate_hz`` each, and a bookkeeper.
 
-    The bookkeeper node ``/sensor_array`` answers the ``std_srvs/srv/Trigger`` service
-    ``/sensor_array/sent_count`` with the total number of messages published so far (in
-    ``response.message``): the ground truth a checker compares a measurement with.
+    Returns the sensors and the :class:`SentCounter` ``/sensor_array``, which reports their total
+    count over the channel (read it with :func:`sent_rate`).
     """
     if not 1 <= int(count) <= 50:
         raise CourseError(f"count must be 1..50 sensors, got {count!r}")
     if not 0 < float(rate_hz) <= 1000:
         raise CourseError(f"rate_hz must be in (0, 1000], got {rate_hz!r}")
     sensors = [ImuSensor(f"imu_{i}", rate_hz, namespace) for i in range(int(count))]
-    bookkeeper = Node("sensor_array")
-
-    def report(_request, response):
-        response.success = True
-        response.message = str(sum(s.sent for s in sensors))
-        return response
-
-    bookkeeper.sent_service = bookkeeper.create_service(Trigger, SENT_COUNT_SERVICE, report)
-    return [*sensors, bookkeeper]
+    return [*sensors, SentCounter(sensors)]
 
 
-def sent_count(node: Node, timeout: float = 5.0) -> tuple[int, float]:
-    """Ask the sensor array how many messages it has sent; return (count, monotonic time of answer).
+def sent_rate(child, start: float, end: float, timeout: float = 5.0) -> float:
+    """Messages per second a child process published between two ``time.monotonic()`` instants.
 
-    ``node`` must be spun by an executor (a node added with ``rt.add`` or ``rt.node``).
+    Args:
+        child: the ChildProcess of :func:`make_sensor_array` or :class:`PayloadPublisher`; it
+            reports ``report('sent', count=N)`` on its channel.
+        start, end: the measurement window (this machine's monotonic clock, seconds).
+        timeout: seconds to wait for the child's first count after ``end``.
+
+    Returns:
+        The rate between the child's last count before ``start`` (or its first one) and its first
+        count after ``end``.
     """
-    from course_helpers.core.runtime import get_runtime
-
-    rt = get_runtime()
-    client = node.create_client(Trigger, SENT_COUNT_SERVICE)
-    try:
-        if not client.wait_for_service(timeout_sec=timeout):
-            raise CourseError(f"no sensor array answers {SENT_COUNT_SERVICE}; start it with "
-                              "rt.spawn('sensors', 'course_helpers.chapters.ch03_topics:make_sensor_array')")
-        sent_at = time.monotonic()
-        response = rt.wait_for_future(client.call_async(Trigger.Request()), timeout,
-                                      SENT_COUNT_SERVICE)
-        received_at = time.monotonic()
-        return int(response.message), (sent_at + received_at) / 2
-    finally:
-        rt.call_in_executor(node.destroy_client, client)
+    wait_until(lambda: any(t >= end for t, _ in child.channel.stamped("sent")) or not child.alive,
+               timeout, f"the message count of {child.label!r} after the measurement")
+    counts = child.channel.stamped("sent")
+    after = next(((t, d) for t, d in counts if t >= end), None)
+    if after is None:
+        raise child.failure("it reported its message count")
+    before = max(((t, d) for t, d in counts if t <= start), default=counts[0], key=lambda c: c[0])
+    return (after[1]["count"] - before[1]["count"]) / (after[0] - before[0])
 
 
 # ---------------------------------------------------------------------- message size vs rate
+def payload_message(size_bytes: int) -> UInt8MultiArray:
+    """A std_msgs/UInt8MultiArray carrying ``size_bytes`` zero bytes."""
+    msg = UInt8MultiArray()
+    msg.data = bytes(size_bytes)
+    return msg
+
+
 class PayloadPublisher(Node):
-    """Publishes ``size_bytes`` of payload (std_msgs/UInt8MultiArray) on ``topic`` at ``rate_hz``."""
+    """Publishes ``size_bytes`` of payload (std_msgs/UInt8MultiArray) on ``topic`` at ``rate_hz``.
+
+    After each message it reports ``report('sent', count=N)`` over the process channel (in a child
+    process; see :func:`sent_rate`).
+    """
 
     def __init__(self, size_bytes: int, rate_hz: float, topic: str = "payload",
                  name: str = "payload_publisher"):
         super().__init__(name)
-        self.msg = UInt8MultiArray()
-        self.msg.data = bytes(size_bytes)
+        self.msg = payload_message(size_bytes)
+        self.sent = 0
         self.publisher = self.create_publisher(UInt8MultiArray, topic, 10)
         self.timer = self.create_timer(1.0 / rate_hz, self.tick)
 
     def tick(self) -> None:
         self.publisher.publish(self.msg)
+        self.sent += 1
+        report("sent", count=self.sent)
 
 
-def make_payload_publisher(size_bytes: int = 1000, rate_hz: float = 100.0,
-                           topic: str = "payload") -> Node:
-    """Child-process target: a :class:`PayloadPublisher`."""
-    return PayloadPublisher(int(size_bytes), float(rate_hz), topic)
+class BandwidthMeter(Node):
+    """Keeps the size in bytes of every message on ``topic``, as it travelled (like ``ros2 topic bw``).
+
+    The subscription is raw: the callback gets the serialized message, not a decoded one.
+    """
+
+    def __init__(self, topic: str = "/payload", name: str = "bandwidth_meter"):
+        super().__init__(name)
+        self.sizes: list[int] = []  # bytes of each message received, oldest first
+        self.subscription = self.create_subscription(UInt8MultiArray, topic, self.on_message, 10, raw=True)
+
+    def on_message(self, raw: bytes) -> None:
+        self.sizes.append(len(raw))
 
 
 @dataclass
@@ -232,6 +265,7 @@ class BandwidthSample:
     nominal_hz: float
     received_hz: float
     bytes_per_s: float
+    sent_hz: float  # what the publisher managed to send (less than nominal on a busy machine)
 
     @property
     def computed_bytes_per_s(self) -> float:
@@ -243,57 +277,58 @@ def measure_bandwidth(rt, sizes=(100, 10_000, 100_000, 500_000), rate_hz: float 
                       duration_s: float = 1.0) -> list[BandwidthSample]:
     """For each payload size, run a publisher in a child process and measure what arrives here.
 
-    The subscriber takes messages raw (serialized bytes, like ``ros2 topic bw``), so it counts
-    exactly what travelled through the middleware.
+    Args:
+        rt: the kernel's course runtime.
+        sizes: payload sizes in bytes (0..4,000,000), measured one after the other.
+        rate_hz: the publishing rate, (0, 500] Hz.
+        duration_s: the measurement window per size, seconds.
+
+    Returns:
+        One :class:`BandwidthSample` per size. A :class:`BandwidthMeter` in this process counts
+        the bytes, spun by an executor of its own so that the notebook's other nodes do not
+        delay it.
     """
     sizes = [int(s) for s in sizes]
     if not sizes or any(s < 0 or s > 4_000_000 for s in sizes):
         raise CourseError(f"sizes must be payload sizes from 0 to 4000000 bytes, got {sizes!r}")
     if not 0 < rate_hz <= 500:
         raise CourseError(f"rate_hz must be in (0, 500], got {rate_hz!r}")
-    meter = rt.node("bandwidth_meter", console=False)
     samples = []
-    received: list[int] = []
-    subscription = meter.create_subscription(UInt8MultiArray, "/payload",
-                                             lambda raw: received.append(len(raw)), 10, raw=True)
-    try:
-        for size in sizes:
-            wire = message_size(_payload(size))
+    # The meter spins alone: the notebook's other nodes cannot delay it.
+    with spinning_alone(rt, BandwidthMeter, name="bandwidth_meter") as meter:
+        try:
+            for size in sizes:
+                wire = message_size(payload_message(size))
 
-            def this_size(n: int, wire: int = wire) -> bool:
-                # a late message of the previous (stopped) publisher must not count for this size
-                return wire / 2 <= n <= wire * 2 + 64
+                def this_size(n: int, wire: int = wire) -> bool:
+                    # a late message of the previous (stopped) publisher must not count for this size
+                    return wire / 2 <= n <= wire * 2 + 64
 
-            rt.spawn("payload", "course_helpers.chapters.ch03_topics:make_payload_publisher",
-                     {"size_bytes": size, "rate_hz": rate_hz}, wait_for="/payload_publisher")
-            rt.wait_until(lambda: sum(map(this_size, received)) >= 2, 10, f"the first {size}-byte messages")
-            start_count, start = len(received), time.monotonic()
-            time.sleep(duration_s)
-            window = [n for n in received[start_count:] if this_size(n)]
-            elapsed = time.monotonic() - start
-            samples.append(BandwidthSample(size, wire, rate_hz, len(window) / elapsed,
-                                           sum(window) / elapsed))
+                publisher = rt.spawn("payload", PayloadPublisher,
+                                     {"size_bytes": size, "rate_hz": rate_hz}, wait_for="/payload_publisher")
+                rt.wait_until(lambda: sum(map(this_size, meter.sizes)) >= 2, 10,
+                              f"the first {size}-byte messages")
+                start_count, start = len(meter.sizes), time.monotonic()
+                time.sleep(duration_s)  # the measurement window
+                window = [n for n in meter.sizes[start_count:] if this_size(n)]
+                end = time.monotonic()
+                samples.append(BandwidthSample(size, wire, rate_hz, len(window) / (end - start),
+                                               sum(window) / (end - start),
+                                               sent_rate(publisher, start, end)))
+                rt.stop_child("payload")
+                meter.sizes.clear()
+        finally:
             rt.stop_child("payload")
-            received.clear()
-    finally:
-        rt.stop_child("payload")
-        rt.call_in_executor(meter.destroy_subscription, subscription)
-        rt.remove(meter)
     return samples
 
 
-def _payload(size: int) -> UInt8MultiArray:
-    msg = UInt8MultiArray()
-    msg.data = bytes(size)
-    return msg
-
-
 def plot_bandwidth(samples: list[BandwidthSample]):
-    """Bar chart: measured vs computed bandwidth per message size, with the received rate on top."""
+    """Bar chart of :class:`BandwidthSample` s: measured vs computed bandwidth per payload size,
+    with the received rate on top. Returns the matplotlib figure."""
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 3.8))
-    labels = [_human_bytes(s.wire_bytes) for s in samples]
+    labels = [format_bytes(s.payload_bytes, binary=False) for s in samples]
     xs = range(len(samples))
     ax.bar([x - 0.2 for x in xs], [s.computed_bytes_per_s / 1e6 for s in samples], width=0.4,
            label="computed: rate × size", color="#cbd5e1", edgecolor="#475569")
@@ -304,17 +339,9 @@ def plot_bandwidth(samples: list[BandwidthSample]):
                     va="bottom", fontsize=8, xytext=(0, 2), textcoords="offset points")
     ax.set_yscale("log")
     ax.set_xticks(list(xs), labels)
-    ax.set_xlabel(f"message size on the wire (published at {samples[0].nominal_hz:g} Hz)")
+    ax.set_xlabel(f"payload per message (published at {samples[0].nominal_hz:g} Hz)")
     ax.set_ylabel("bandwidth (MB/s, log scale)")
     ax.set_title("Same rate, bigger messages: bandwidth grows with size")
     ax.legend(loc="upper left", fontsize=8)
     fig.tight_layout()
     return fig
-
-
-def _human_bytes(n: float) -> str:
-    for unit in ("B", "kB", "MB"):
-        if n < 1000 or unit == "MB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1000
-    return f"{n:.1f} MB"

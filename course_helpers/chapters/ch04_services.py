@@ -1,11 +1,11 @@
-"""Service helpers for chapter 04: the deadlock demo and the topic-vs-service latency measurement.
+"""Chapter 04 (services): the deadlock demo and the topic-vs-service latency measurement.
 
 * :func:`run_deadlock_demo` runs a node that calls a service from inside a callback
   on its *own* executor and context, in a thread of its own, and reports whether
   the call returned within a time limit. A deadlocked demo is unblocked and torn
   down afterwards, so the kernel's runtime never hangs.
-* :class:`IsolatedExecutor` is the sandbox behind it (also used by the chapter's
-  checker for the "service that calls a service" exercise).
+* :class:`IsolatedExecutor` is the sandbox behind it: nodes in their own context and
+  executor thread, torn down even if a callback hangs in ``client.call()``.
 * :func:`measure_round_trips` times, against a node in a child process, how long a
   caller waits for ``publish()``, a topic message, a topic ping-pong and a service
   call; :func:`plot_round_trips` draws the result.
@@ -18,22 +18,26 @@ from __future__ import annotations
 import statistics
 import threading
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Int64
 
 from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.executors import SpinThread, plain_executor
+from course_helpers.core.node_hook import build_nodes
+from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_namespace
+from course_helpers.core.waiting import poll_until
 
 DEMO_NAMESPACE = "/deadlock_demo"
 ADD_SERVICE = "add_two_ints"
 EXECUTOR_KINDS = ("single", "multi")
+TEARDOWN_TIMEOUT_S = 3.0  # how long close() keeps releasing stuck calls before it gives up waiting
+RELEASE_PERIOD_S = 0.02  # how often close() releases calls (a released callback may call again)
 
 
 # ---------------------------------------------------------------------- a reference adder
@@ -57,35 +61,6 @@ class AdderServer(Node):
         return response
 
 
-# ---------------------------------------------------------------------- building nodes in a context
-_building = threading.local()
-
-
-@contextmanager
-def _nodes_join(context: Context):
-    """While active, ``Node.__init__`` in this thread defaults to ``context``.
-
-    Student classes call ``super().__init__('name')`` without a context argument;
-    this lets the sandbox build them in its own context without changing their code.
-    """
-    previous = Node.__init__
-
-    def init(node, node_name, *args, **kwargs):
-        target = getattr(_building, "context", None)
-        if target is not None and kwargs.get("context") is None:
-            kwargs["context"] = target
-        previous(node, node_name, *args, **kwargs)
-
-    _building.context = context
-    Node.__init__ = init
-    try:
-        yield
-    finally:
-        _building.context = None
-        if Node.__init__ is init:
-            Node.__init__ = previous
-
-
 # ---------------------------------------------------------------------- the sandbox
 class IsolatedExecutor:
     """Nodes in their own rclpy context and executor thread, torn down even if a callback hangs.
@@ -97,10 +72,15 @@ class IsolatedExecutor:
             caller = box.add(BlockingCaller)
             box.wait_for(lambda: caller.answer is not None, timeout_s=2.0)
 
-    Every node gets ``namespace`` (a global remapping), so its services do not
-    clash with the notebook's own. On exit, any service call still waiting is
-    failed on purpose, which releases a callback stuck in ``client.call()``; then
-    the thread is joined and the context shut down.
+    Args:
+        executor: 'single' or 'multi' (a SingleThreadedExecutor or a MultiThreadedExecutor).
+        namespace: given to every node (a global remapping), so that its services do not
+            clash with the notebook's own.
+        threads: worker threads of the multi-threaded executor.
+
+    On exit, any service call still waiting is failed on purpose, which releases a
+    callback stuck in ``client.call()``; then the thread is joined and the context shut
+    down. Exceptions that callbacks raised while the sandbox ran are in ``errors``.
     """
 
     def __init__(self, executor: str = "single", namespace: str = DEMO_NAMESPACE, threads: int = 4):
@@ -113,23 +93,18 @@ class IsolatedExecutor:
         self.nodes: list[Node] = []
         self.context: Context | None = None
         self.executor = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
+        self._spinner: SpinThread | None = None
+        self._closing = False
 
     def __enter__(self) -> IsolatedExecutor:
-        from course_helpers.core.runtime import get_runtime
-
         domain_id = get_runtime().domain.domain_id  # same domain: the kernel can see these nodes
         self.context = Context()
         args = ["--ros-args", "--disable-stdout-logs", "-r", f"__ns:={self.namespace}"]
         rclpy.init(args=args, context=self.context, domain_id=domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
-        if self.kind == "single":
-            self.executor = SingleThreadedExecutor(context=self.context)
-        else:
-            self.executor = MultiThreadedExecutor(num_threads=self.threads, context=self.context)
-        self._thread = threading.Thread(target=self._spin, name="isolated-executor", daemon=True)
-        self._thread.start()
+        self._closing = False
+        self.executor = plain_executor(self.kind, self.context, self.threads)
+        self._spinner = SpinThread(self.executor, "isolated-executor", self._record_error).start()
         return self
 
     def __exit__(self, *exc) -> bool:
@@ -137,11 +112,15 @@ class IsolatedExecutor:
         return False
 
     def add(self, node_class, *args, **kwargs) -> Node:
-        """Build ``node_class(*args, **kwargs)`` in this sandbox's context and spin it."""
+        """Build ``node_class(*args, **kwargs)`` in this sandbox's context and spin it; returns the node.
+
+        The class may call ``super().__init__('name')`` without a context: the node joins
+        the sandbox's context anyway. Raises :class:`CourseError` outside a ``with`` block or
+        if the class builds no Node.
+        """
         if self.context is None:
             raise CourseError("use IsolatedExecutor in a `with` block before adding nodes")
-        with _nodes_join(self.context):
-            node = node_class(*args, **kwargs)
+        node = build_nodes(self.context, node_class, *args, **kwargs)
         if not isinstance(node, Node):
             raise CourseError(f"{getattr(node_class, '__name__', node_class)!r} did not build an rclpy Node")
         self.nodes.append(node)
@@ -149,13 +128,8 @@ class IsolatedExecutor:
         return node
 
     def wait_for(self, predicate, timeout_s: float) -> bool:
-        """Wait up to ``timeout_s`` for ``predicate()``; True if it became true."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            time.sleep(0.005)
-        return bool(predicate())
+        """Wait up to ``timeout_s`` seconds for ``predicate()``; True if it became true."""
+        return poll_until(predicate, timeout_s)
 
     def release_waiting_calls(self) -> int:
         """Cancel every service request a node of the sandbox is still waiting for; returns how many.
@@ -175,13 +149,9 @@ class IsolatedExecutor:
         """Release stuck calls, stop the threads, destroy the nodes and shut the context down."""
         if self.context is None:
             return
-        self._stop.set()
-        deadline = time.monotonic() + 3.0
-        while time.monotonic() < deadline:  # a released callback may block again in another call
-            self.release_waiting_calls()
-            self._thread.join(timeout=0.05)
-            if not self._thread.is_alive() and not self._callbacks_running():
-                break
+        self._closing = True
+        self._spinner.stop(timeout=0)  # ask the loop to end; a callback may still be stuck in a call
+        poll_until(self._released_and_idle, TEARDOWN_TIMEOUT_S, RELEASE_PERIOD_S)
         pool = getattr(self.executor, "_executor", None)  # the MultiThreadedExecutor's worker threads
         if pool is not None:
             pool.shutdown(wait=not self._callbacks_running())
@@ -195,7 +165,19 @@ class IsolatedExecutor:
         self.context.try_shutdown()
         self.context = None
 
+    def _released_and_idle(self) -> bool:
+        """Release waiting calls (a released callback may block again in another call); True once
+        the spin thread has ended and no callback runs."""
+        self.release_waiting_calls()
+        return not self._spinner.alive and not self._callbacks_running()
+
+    def _record_error(self, error: BaseException) -> None:
+        """A callback raised: remember it, unless the teardown caused it (a released call)."""
+        if not self._closing:
+            self.errors.append(f"{type(error).__name__}: {error}")
+
     def _callbacks_running(self) -> bool:
+        """True while a callback of the multi-threaded executor's workers has not finished."""
         return any(not task.done() for task in list(getattr(self.executor, "_futures", []) or []))
 
     def _collect_task_errors(self) -> None:
@@ -211,14 +193,6 @@ class IsolatedExecutor:
             task = item[0] if isinstance(item, tuple) else item
             if hasattr(task, "exception") and task.done() and task.exception() is not None:
                 self.errors.append(f"{type(task.exception()).__name__}: {task.exception()}")
-
-    def _spin(self) -> None:
-        while not self._stop.is_set() and self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception as error:  # a callback raised: remember it, keep spinning
-                if not self._stop.is_set():
-                    self.errors.append(f"{type(error).__name__}: {error}")
 
 
 # ---------------------------------------------------------------------- the deadlock demo
@@ -258,8 +232,12 @@ def run_deadlock_demo(caller_class, executor: str = "single", timeout_s: float =
     The caller is a Node class that calls ``add_two_ints`` from one of its callbacks
     and stores the sum in ``self.answer``. Both nodes run in a sandbox (their own
     context, ``executor='single'`` or ``'multi'``, namespace ``/deadlock_demo``). If
-    ``answer`` is still None after ``timeout_s`` seconds, the call deadlocked; the
-    sandbox is then unblocked and destroyed, and the kernel's runtime is untouched.
+    ``answer`` is still None after ``timeout_s`` seconds (0.1 to 30), the call
+    deadlocked; the sandbox is then unblocked and destroyed, and the kernel's runtime
+    is untouched. ``answer_attribute`` names the attribute to read instead of ``answer``.
+
+    Returns a :class:`DeadlockOutcome`; raises :class:`CourseError` for a bad executor
+    or timeout.
     """
     if executor not in EXECUTOR_KINDS:
         raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
@@ -288,11 +266,6 @@ class LatencyEcho(Node):
     def on_add(self, request, response):
         response.sum = request.a + request.b
         return response
-
-
-def make_latency_echo(name: str = "latency_echo") -> LatencyEcho:
-    """Child-process target: ``'course_helpers.chapters.ch04_services:make_latency_echo'``."""
-    return LatencyEcho(name)
 
 
 LATENCY_KINDS = {
@@ -329,14 +302,20 @@ def measure_round_trips(rt=None, samples: int = 200, timeout_s: float = 1.0) -> 
     ``publish()`` blocked the caller, the topic round trip (ping out, pong back) and
     the service round trip (request out, response back). The child process and the
     probe are removed afterwards.
-    """
-    from course_helpers.core.runtime import get_runtime
 
+    Args:
+        rt: the runtime (default: this kernel's).
+        samples: how many samples of each kind, 10 to 5000.
+        timeout_s: how long to wait for one echo or one response [s].
+
+    Returns a :class:`RoundTrips`; raises :class:`WaitTimeout` if an echo or a response
+    does not come.
+    """
     if isinstance(samples, bool) or not isinstance(samples, int) or not 10 <= samples <= 5000:
         raise CourseError(f"samples must be a whole number from 10 to 5000, got {samples!r}")
     rt = rt or get_runtime()
     add_two_ints = _add_two_ints_type()
-    rt.spawn("latency_echo", "course_helpers.chapters.ch04_services:make_latency_echo", wait_for="/latency_echo")
+    rt.spawn("latency_echo", LatencyEcho, wait_for="/latency_echo")
     probe = rt.node("latency_probe")
     try:
         pong_seen = threading.Event()

@@ -1,4 +1,4 @@
-"""Action helpers for chapter 05: pauses that do not block, a feedback progress bar, an action's parts.
+"""Chapter 05 (actions): pauses that do not block, a feedback progress bar, an action's parts.
 
 * :func:`sleep_async` is an awaitable pause for ``async def`` callbacks (an action's
   execute callback): it lets the single executor thread run other callbacks
@@ -20,6 +20,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.names import as_full_name
+from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_topic_name
 
 STATUS_NAMES = {
@@ -132,11 +134,14 @@ _ROLES = {
 
 
 def action_parts(action_name: str, rt=None) -> list[ActionPart]:
-    """The hidden topics and services behind ``action_name`` ('/fibonacci'), from the live graph, sorted."""
-    from course_helpers.core.runtime import get_runtime
+    """The hidden topics and services behind ``action_name`` ('/fibonacci' or 'fibonacci').
 
+    Read from the live graph of ``rt`` (default: this kernel's runtime). Returns the
+    :class:`ActionPart` list sorted by kind and name; raises :class:`CourseError` if the
+    graph has no such action.
+    """
     check_topic_name(action_name)
-    name = action_name if action_name.startswith("/") else "/" + action_name
+    name = as_full_name(action_name)
     rt = rt or get_runtime()
     prefix = f"{name}/_action/"
     parts = []
@@ -153,6 +158,6 @@ def action_parts(action_name: str, rt=None) -> list[ActionPart]:
 
 
 def print_action_parts(action_name: str, rt=None) -> None:
-    """Print :func:`action_parts` as an aligned table."""
+    """Print :func:`action_parts` of ``action_name`` as an aligned table, one part per line."""
     for part in action_parts(action_name, rt):
         print(f"{part.kind:<8} {part.name:<34} {part.type:<51} {part.role}")

@@ -11,10 +11,12 @@ accepts a correct solution and rejects a wrong one.
 
 from __future__ import annotations
 
+import contextlib
 import html
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+
+from rclpy.node import Node
 
 
 @dataclass
@@ -91,15 +93,21 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
 
 
-def poll_until(predicate: Callable[[], object], timeout_s: float, period_s: float = 0.01) -> bool:
-    """Check ``predicate`` until it is true or ``timeout_s`` passes; True if it came true.
+@contextlib.contextmanager
+def student_node(report: CheckReport, rt, node_class, probe_name: str):
+    """Run the student's node and a probe node beside it; remove both afterwards.
 
-    Checkers use this (not ``rt.wait_until``) when a timeout is an expected outcome to
-    report as a failed criterion rather than an exception.
+    Yields ``(node, probe)``, or ``(None, None)`` when the student's class could not be built
+    (the report then holds that failure). ``node_class`` is built without arguments.
     """
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(period_s)
-    return bool(predicate())
+    node = report.run("the node can be created", lambda: rt.add(node_class, console=False),
+                      hint="Run the class cell first; the constructor must take no arguments.")
+    if node is None:
+        yield None, None
+        return
+    probe = rt.add(Node, probe_name, console=False)
+    try:
+        yield node, probe
+    finally:
+        rt.remove(probe)  # the runtime also destroys the action servers and clients a node leaves behind
+        rt.remove(node)

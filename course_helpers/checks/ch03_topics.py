@@ -22,8 +22,16 @@ from geometry_msgs.msg import Twist
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch03_topics import imu_message, message_size, sensor_topics, sent_count
+from course_helpers.chapters.ch03_topics import (
+    imu_message,
+    make_sensor_array,
+    message_size,
+    sensor_topics,
+    sent_rate,
+)
 from course_helpers.checks import CheckReport
+from course_helpers.core.names import full_name
+from course_helpers.core.waiting import poll_until, sleep_unless
 
 TILT_THRESHOLD_DEG = 15.0
 # (roll, pitch, yaw) in degrees, and whether the attitude is tilted by more than 15°
@@ -60,12 +68,10 @@ def _endpoint_types(rt, topic: str, node, publishers: bool) -> list[str]:
 
 
 def _wait_for_endpoint(rt, topic, node, publishers, timeout=2.0) -> list[str]:
-    deadline = time.monotonic() + timeout
-    while True:
-        types = _endpoint_types(rt, topic, node, publishers)
-        if types or time.monotonic() > deadline:
-            return types
-        time.sleep(0.02)
+    """The types of ``node``'s publishers (or subscriptions) on ``topic``, once any shows up
+    in the graph within ``timeout`` seconds; an empty list if none does."""
+    poll_until(lambda: _endpoint_types(rt, topic, node, publishers), timeout)
+    return _endpoint_types(rt, topic, node, publishers)
 
 
 def _types_detail(types: list[str], wanted: str) -> str:
@@ -77,8 +83,7 @@ def _types_detail(types: list[str], wanted: str) -> str:
 
 def _other_publishers(rt, topic: str, allowed: set[str]) -> list[str]:
     """Full names of the nodes publishing on ``topic`` other than those in ``allowed``."""
-    names = {(i.node_namespace.rstrip("/") + "/" + i.node_name)
-             for i in rt.graph.get_publishers_info_by_topic(topic)}
+    names = {full_name(i.node_namespace, i.node_name) for i in rt.graph.get_publishers_info_by_topic(topic)}
     return sorted(names - allowed)
 
 
@@ -92,8 +97,11 @@ def _no_intruders(report: CheckReport, rt, topics: list[str], allowed: set[str])
                            "rt.stop_child(label) for a child process, then check again.")
 
 
-def _new_errors(rt, before: int) -> list[str]:
-    return rt.errors[before:]
+def _no_callback_errors(report: CheckReport, rt, errors_before: int) -> bool:
+    """A criterion: no callback raised since the runtime had ``errors_before`` errors."""
+    errors = rt.errors[errors_before:]
+    return report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
+                      hint="Read the traceback in the node's console under this cell.")
 
 
 def _start_student_node(report: CheckReport, rt, node_class, *args):
@@ -104,7 +112,11 @@ def _start_student_node(report: CheckReport, rt, node_class, *args):
 
 # ---------------------------------------------------------------------- exercise 1
 def check_tilt_warning(node_class, rt=None) -> CheckReport:
-    """Check a tilt-warning node class: warnings on /safety/tilt_warning exactly when tilt > 15°."""
+    """Check a tilt-warning node class: warnings on /safety/tilt_warning exactly when tilt > 15°.
+
+    ``node_class()`` builds the node (no arguments); ``rt`` is the course runtime (default: this
+    process's). Returns a :class:`CheckReport`, one criterion per scripted attitude.
+    """
     from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
@@ -143,9 +155,7 @@ def check_tilt_warning(node_class, rt=None) -> CheckReport:
             return report
         for (roll, pitch, yaw), tilted in TILT_CASES:
             _run_tilt_case(report, rt, imu_pub, warnings, roll, pitch, yaw, tilted)
-        errors = _new_errors(rt, errors_before)
-        report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
-                   hint="Read the traceback in the node's console under this cell.")
+        _no_callback_errors(report, rt, errors_before)
     finally:
         rt.remove(node)
         if probe is not None:
@@ -161,16 +171,13 @@ def _run_tilt_case(report, rt, publisher, warnings, roll, pitch, yaw, tilted) ->
     tilt = _tilt_of(roll, pitch)
     label = f"roll {roll:>3}°, pitch {pitch:>3}°, yaw {yaw:>2}° (tilt {tilt:4.1f}°)"
     if tilted:
-        try:
-            rt.wait_until(lambda: warnings, 2.0, "a warning")
-        except TimeoutError:
-            pass
+        poll_until(lambda: warnings, 2.0)
         hint = ("Tilt is the angle between the robot's up axis and the vertical: "
                 "cos(tilt) = 1 - 2(x² + y²) for the orientation quaternion (x, y, z, w). "
                 "Both roll and pitch count; combine them, do not take only the larger one.")
         report.add(f"{label}: warning", bool(warnings), "" if warnings else "no warning within 2 s", hint)
     else:
-        time.sleep(0.3)
+        sleep_unless(lambda: warnings, 0.3)  # a wrong warning may come within 0.3 s
         hint = ("Warn only above 15°; yaw (turning on the spot) is not tilt, so do not use the "
                 "full rotation angle of the quaternion.")
         report.add(f"{label}: no warning", not warnings,
@@ -188,7 +195,11 @@ CSV_TWISTS = [  # (linear x, y, z, angular x, y, z): every column different, so 
 
 
 def check_cmd_vel_logger(node_class, rt=None) -> CheckReport:
-    """Check a /cmd_vel CSV logger: header, one flushed row per Twist, values in the right columns."""
+    """Check a /cmd_vel CSV logger: header, one flushed row per Twist, values in the right columns.
+
+    ``node_class(csv_path)`` builds the node; ``rt`` is the course runtime (default: this
+    process's). Returns a :class:`CheckReport`.
+    """
     from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
@@ -218,19 +229,14 @@ def check_cmd_vel_logger(node_class, rt=None) -> CheckReport:
             publisher.publish(_twist(*values))
             time.sleep(0.02)
         expected_lines = 1 + len(CSV_TWISTS)
-        try:
-            rt.wait_until(lambda: len(_read_lines(path)) >= expected_lines, 3.0, "the CSV rows")
-        except TimeoutError:
-            pass
+        poll_until(lambda: len(_read_lines(path)) >= expected_lines, 3.0)
         lines = _read_lines(path)
         report.add("rows are on disk while the node runs", len(lines) >= expected_lines,
                    f"{len(lines)} line(s) in the file after 5 messages",
                    hint="Call self.file.flush() after each writerow(), or the rows wait in a "
                         "buffer and a crash loses them.")
         _check_csv_content(report, lines, started)
-        errors = _new_errors(rt, errors_before)
-        report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
-                   hint="Read the traceback in the node's console under this cell.")
+        _no_callback_errors(report, rt, errors_before)
     finally:
         rt.remove(node)
         if probe is not None:
@@ -325,8 +331,16 @@ LOAD_CASES = [(10, 100.0, 324), (3, 30.0, 921_600), (1, 1.0, 0)]
 def check_throughput(expected_load, measure_load, rt=None, duration_s: float = 2.0) -> CheckReport:
     """Check ``expected_load(n, rate_hz, bytes)`` and ``measure_load(node, topics, duration_s)``.
 
-    The measured part starts 10 IMU publishers at 100 Hz in a child process and compares the
-    student's measurement with the number of messages the sensors report they really sent.
+    Args:
+        expected_load: returns (messages/s, bytes/s) computed for ``n`` sensors at ``rate_hz``.
+        measure_load: subscribes with ``node`` to ``topics`` and returns the measured (messages/s,
+            bytes/s).
+        rt: the course runtime (default: this process's).
+        duration_s: passed to ``measure_load``.
+
+    Returns:
+        A :class:`CheckReport`. The measured part starts 10 IMU publishers at 100 Hz in a child
+        process and compares the measurement with the rate the sensors report they really sent.
     """
     from course_helpers.core.runtime import get_runtime
 
@@ -344,18 +358,18 @@ def check_throughput(expected_load, measure_load, rt=None, duration_s: float = 2
         report.add(name, ok, "" if ok else f"got {got!r}",
                    hint="messages/s = sensors x rate; bytes/s = messages/s x message size.")
     message_bytes = message_size(imu_message(frame_id="imu_0"))
-    rt.spawn("sensor_array", "course_helpers.chapters.ch03_topics:make_sensor_array",
-             {"count": SENSOR_COUNT, "rate_hz": SENSOR_RATE_HZ}, wait_for="/sensor_array")
+    array = rt.spawn("sensor_array", make_sensor_array, {"count": SENSOR_COUNT, "rate_hz": SENSOR_RATE_HZ},
+                     wait_for="/sensor_array")
     meter = rt.node("load_meter", console=False)
     try:
         topics = sensor_topics(SENSOR_COUNT)
         rt.wait_until(lambda: all(rt.graph.count_publishers(t) for t in topics), 10, "10 sensor topics")
-        sent_before, t_before = sent_count(meter)
+        t_before = time.monotonic()
         run_name = "measure_load(node, topics, duration_s) returns (messages/s, bytes/s)"
         measured = report.run(run_name, lambda: measure_load(meter, topics, duration_s),
                               hint="Subscribe to every topic, count messages and bytes for duration_s "
                                    "seconds, return (messages/s, bytes/s).")
-        sent_after, t_after = sent_count(meter)
+        t_after = time.monotonic()
         if measured is None:
             return report
         shaped = isinstance(measured, (tuple, list)) and len(measured) == 2
@@ -363,10 +377,10 @@ def check_throughput(expected_load, measure_load, rt=None, duration_s: float = 2
                           hint="Return a tuple of two numbers."):
             return report
         msgs_per_s, bytes_per_s = (float(v) for v in measured)
-        actual = (sent_after - sent_before) / (t_after - t_before)
-        ok = math.isclose(msgs_per_s, actual, rel_tol=0.15)
-        report.add("measured messages/s matches what the sensors sent (within 15%)", ok,
-                   "" if ok else f"measured {msgs_per_s:.0f} msg/s, the sensors sent {actual:.0f} msg/s",
+        actual = sent_rate(array, t_before, t_after)
+        matches_sent = math.isclose(msgs_per_s, actual, rel_tol=0.15)
+        report.add("measured messages/s matches what the sensors sent (within 15%)", matches_sent,
+                   "" if matches_sent else f"measured {msgs_per_s:.0f} msg/s, the sensors sent {actual:.0f}",
                    hint="Count the messages of all 10 topics together, divide by the seconds you "
                         "counted for, and start counting only once messages flow.")
         per_message = bytes_per_s / msgs_per_s if msgs_per_s > 0 else 0.0
@@ -375,12 +389,13 @@ def check_throughput(expected_load, measure_load, rt=None, duration_s: float = 2
                    ok, "" if ok else f"{per_message:.0f} B per message",
                    hint="With raw=True the callback gets the serialized bytes: add len(data).")
         computed = SENSOR_COUNT * SENSOR_RATE_HZ
-        ok = math.isclose(msgs_per_s, computed, rel_tol=0.25)
-        busy = actual < 0.85 * computed
-        report.add(f"computed ({computed:g} msg/s) and measured agree within 25%", ok,
-                   "" if ok else f"measured {msgs_per_s:.0f} msg/s"
-                   + ("; the sensors could not keep up on this busy machine" if busy else ""),
-                   hint="If the other criteria pass, the machine was too busy: run the check again.")
+        agree = math.isclose(msgs_per_s, computed, rel_tol=0.25)
+        fell_behind = actual < 0.85 * computed  # a busy machine: the sensors' timers fell behind
+        explained = agree or (fell_behind and matches_sent)
+        report.add(f"computed ({computed:g} msg/s) and measured agree within 25%, "
+                   "or the sensors fell behind", explained,
+                   "" if explained else f"measured {msgs_per_s:.0f} msg/s",
+                   hint="Count every message of every topic: 10 sensors at 100 Hz send 1000 a second.")
     finally:
         rt.remove(meter)
         rt.stop_child("sensor_array")

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import time
-
 from rclpy.node import Node
 from std_msgs.msg import Float32
 from std_srvs.srv import Trigger
 
 from course_helpers.chapters.ch04_services import AdderServer, IsolatedExecutor
-from course_helpers.checks import CheckReport, poll_until
+from course_helpers.checks import CheckReport, student_node
+from course_helpers.core.names import full_name
+from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import interface_name
+from course_helpers.core.waiting import poll_until
 
 ANSWER_TIMEOUT_S = 2.0
 
@@ -25,21 +26,16 @@ def _call(rt, client, request, timeout_s: float = ANSWER_TIMEOUT_S):
 
 
 def check_battery_server(node_class, rt=None) -> CheckReport:
-    """Exercise 04.1: run ``node_class``; query its ``battery_status`` Trigger service at scripted levels."""
-    from course_helpers.core.runtime import get_runtime
+    """Exercise 04.1: run ``node_class``; query its ``battery_status`` Trigger service at scripted levels.
 
+    ``node_class`` is the student's class (no constructor arguments), ``rt`` the runtime
+    (default: this kernel's). Returns the CheckReport, one criterion per line.
+    """
     rt = rt or get_runtime()
     report = CheckReport("Exercise 04.1 - battery status service")
-    node = report.run("the node can be created", lambda: rt.add(node_class, console=False),
-                      hint="Run the class cell first; the constructor must take no arguments.")
-    if node is None:
-        return report
-    probe = rt.add(Node, "battery_checker", console=False)
-    try:
-        _check_battery(rt, report, node, probe)
-    finally:
-        rt.remove(probe)
-        rt.remove(node)
+    with student_node(report, rt, node_class, "battery_checker") as (node, probe):
+        if node is not None:
+            _check_battery(rt, report, node, probe)
     return report
 
 
@@ -73,7 +69,7 @@ def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
     for level, healthy in ((57.0, True), (12.4, False), (20.0, True)):
         expected = f"{round(level)}%"
         publisher.publish(Float32(data=level))
-        response = _poll_until(rt, client, lambda r, text=expected: text in r.message)
+        response = _answer_when(rt, client, lambda r, text=expected: text in r.message)
         if response is None or expected not in response.message:
             got = response.message if response is not None else "no answer"
             report.add(f"after a reading of {level:g}%: the message contains '{expected}'", False,
@@ -94,10 +90,10 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
     The node runs next to a reference adder on a single-threaded executor of its
     own (so a deadlock cannot freeze the kernel); the checker's client calls it
     from the kernel.
+
+    Takes and returns the same as :func:`check_battery_server`.
     """
     from course_interfaces.srv import AddTwoInts
-
-    from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
     report = CheckReport("Exercise 04.2 - a service that calls a service")
@@ -115,13 +111,13 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
                               _unless(named, f"it is called {relay.get_name()!r}"),
                               "super().__init__('sum_relay')"):
                 return report
-            offered = offered_services(relay).get(f"{namespace}/add_via_relay")
+            offered = offered_services(relay).get(full_name(namespace, "add_via_relay"))
             if not report.add("it offers add_via_relay of type course_interfaces/srv/AddTwoInts",
                               offered == "course_interfaces/srv/AddTwoInts",
                               f"it offers {offered}" if offered else "it offers no add_via_relay service",
                               "self.create_service(AddTwoInts, 'add_via_relay', self.on_request)"):
                 return report
-            client = probe.create_client(AddTwoInts, f"{namespace}/add_via_relay")
+            client = probe.create_client(AddTwoInts, full_name(namespace, "add_via_relay"))
             ready = poll_until(client.service_is_ready, 3.0)
             if not report.add("the checker's client finds the service", ready):
                 return report
@@ -170,18 +166,20 @@ def _unless(passed: bool, detail: str) -> str:
     return "" if passed else detail
 
 
+def _answer_when(rt, client, accept, timeout_s: float = 1.5):
+    """Call the Trigger service until ``accept(response)`` or ``timeout_s`` passes.
 
+    Returns the last response, or None if none came (a call unanswered within 1 s ends
+    the asking).
+    """
+    answers = []
 
-def _poll_until(rt, client, accept, timeout_s: float = 1.5):
-    """Call the Trigger service until ``accept(response)``; return the last response (or None)."""
-    deadline = time.monotonic() + timeout_s
-    response = None
-    while time.monotonic() < deadline:
+    def accepted() -> bool:
         try:
-            response = _call(rt, client, Trigger.Request(), 1.0)
+            answers.append(_call(rt, client, Trigger.Request(), 1.0))
         except TimeoutError:
-            return response
-        if accept(response):
-            return response
-        time.sleep(0.02)
-    return response
+            return True  # the service stopped answering: stop asking
+        return accept(answers[-1])
+
+    poll_until(accepted, timeout_s, period=0.02)
+    return answers[-1] if answers else None

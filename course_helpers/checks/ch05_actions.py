@@ -8,43 +8,28 @@ import time
 from action_msgs.msg import GoalStatus
 from action_msgs.srv import CancelGoal
 from rclpy.action import ActionClient, ActionServer
-from rclpy.node import Node
 
 from course_helpers.chapters.ch05_actions import status_name
-from course_helpers.checks import CheckReport
+from course_helpers.checks import CheckReport, student_node
+from course_helpers.core.runtime import get_runtime
 
 MAX_SPEED = 1.5  # [m/s] the exercise's speed limit
 RESULT_TIMEOUT_S = 3.0
 
 
-def destroy_actions(node: Node) -> None:
-    """Destroy the action servers and clients of ``node`` (``Node.destroy_node`` leaves them alive)."""
-    for waitable in list(node.waitables):
-        if isinstance(waitable, (ActionServer, ActionClient)):
-            waitable.destroy()
-
-
 def check_navigation_server(node_class, rt=None) -> CheckReport:
-    """Exercise 05: send goals to ``node_class``'s ``navigate`` action, reject bad ones, cancel one."""
-    from course_interfaces.action import Navigate
+    """Exercise 05: send goals to ``node_class``'s ``navigate`` action, reject bad ones, cancel one.
 
-    from course_helpers.core.runtime import get_runtime
+    Returns a CheckReport of ``node_class`` (the student's node class, built without
+    arguments) run in ``rt`` (default: this kernel's runtime), with a hint per failure.
+    """
+    from course_interfaces.action import Navigate
 
     rt = rt or get_runtime()
     report = CheckReport("Exercise 05 - navigation action server")
-    node = report.run("the node can be created", lambda: rt.add(node_class, console=False),
-                      hint="Run the class cell first; the constructor must take no arguments.")
-    if node is None:
-        return report
-    probe = rt.add(Node, "navigation_checker", console=False)
-    client = ActionClient(probe, Navigate, "/navigate")
-    try:
-        _check_navigation(rt, report, node, client, Navigate)
-    finally:
-        rt.call_in_executor(destroy_actions, probe)
-        rt.remove(probe)
-        rt.remove(node)  # calls the student's destroy_node ...
-        destroy_actions(node)  # ... and this destroys what it left behind
+    with student_node(report, rt, node_class, "navigation_checker") as (node, probe):
+        if node is not None:
+            _check_navigation(rt, report, node, ActionClient(probe, Navigate, "/navigate"), Navigate)
     return report
 
 

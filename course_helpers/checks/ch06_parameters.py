@@ -10,53 +10,56 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64, String
 
-from course_helpers.checks import CheckReport, poll_until
+from course_helpers.checks import CheckReport
+from course_helpers.core.runtime import get_runtime
+from course_helpers.core.waiting import poll_until
 
 STATUS_TOPIC = "/overheat_check/status"  # the checker's override of status_topic
 DEFAULTS = {"rate_hz": 5.0, "warning_c": 60.0, "critical_c": 80.0}
+SETTLE_S = 0.25  # a retuned timer's first period may still be the old one [s]
 
 
-class _Probe:
-    """The checker's side: a temperature publisher, a status recorder and a remote parameter client."""
+class OverheatProbe(Node):
+    """The checker's side: publishes temperatures, records statuses, sets the monitor's parameters."""
 
-    def __init__(self, rt):
+    def __init__(self, rt, name: str = "overheat_checker"):
+        super().__init__(name)
         self.rt = rt
-        self.node = rt.add(Node, "overheat_checker", console=False)
         self.lock = threading.Lock()
-        self.statuses: list[tuple[float, str]] = []
-        self.node.create_subscription(String, STATUS_TOPIC, self._on_status, 50)
-        self.temperature = self.node.create_publisher(Float64, "/temperature", 10)
-        self.params = AsyncParameterClient(self.node, "/overheat_monitor")
+        self.statuses: list[tuple[float, str]] = []  # (monotonic arrival time [s], status)
+        self.status_subscription = self.create_subscription(String, STATUS_TOPIC, self.on_status, 50)
+        self.temperature = self.create_publisher(Float64, "/temperature", 10)
+        self.monitor_parameters = AsyncParameterClient(self, "/overheat_monitor")
 
-    def _on_status(self, msg: String) -> None:
+    def on_status(self, msg: String) -> None:
         with self.lock:
             self.statuses.append((time.monotonic(), msg.data))
 
     def latest(self) -> str | None:
+        """The newest status received, or None."""
         with self.lock:
             return self.statuses[-1][1] if self.statuses else None
 
-    def set(self, name: str, value):
-        """Set one parameter through the node's set_parameters service; returns SetParametersResult."""
-        future = self.params.set_parameters([Parameter(name, value=value)])
+    def set_remote(self, name: str, value):
+        """Set one parameter through the monitor's set_parameters service; returns its SetParametersResult."""
+        future = self.monitor_parameters.set_parameters([Parameter(name, value=value)])
         return self.rt.wait_for_future(future, 3.0, f"setting {name}").results[0]
 
     def status_after(self, celsius: float | None, expected: str, timeout_s: float = 1.5) -> str | None:
-        """Publish a temperature (unless None); wait until the status is ``expected``; return the last one."""
+        """Publish a temperature (unless None), wait up to ``timeout_s`` for status ``expected``.
+
+        Returns the newest status then (``expected`` if it came).
+        """
         if celsius is not None:
             self.temperature.publish(Float64(data=float(celsius)))
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if self.latest() == expected:
-                return expected
-            time.sleep(0.01)
+        poll_until(lambda: self.latest() == expected, timeout_s)
         return self.latest()
 
-    def rate(self, seconds: float = 1.0) -> float:
-        """Measured status rate [Hz] over the next ``seconds``."""
-        time.sleep(0.25)  # let a retuned timer settle
+    def status_rate(self, seconds: float = 1.0) -> float:
+        """The status rate [Hz] measured over the next ``seconds`` (after letting a retuned timer settle)."""
+        time.sleep(SETTLE_S)
         start = time.monotonic()
-        time.sleep(seconds)
+        time.sleep(seconds)  # the measurement window
         with self.lock:
             stamps = [t for t, _ in self.statuses if t >= start]
         if len(stamps) < 3:
@@ -65,9 +68,11 @@ class _Probe:
 
 
 def check_overheat_monitor(node_class, rt=None) -> CheckReport:
-    """Exercise 06: set good and bad parameters on ``node_class`` and watch what it publishes."""
-    from course_helpers.core.runtime import get_runtime
+    """Exercise 06: set good and bad parameters on ``node_class`` and watch what it publishes.
 
+    ``node_class`` must pass ``**kwargs`` on to Node (the checker overrides status_topic).
+    Returns the CheckReport; ``rt`` defaults to this kernel's runtime.
+    """
     rt = rt or get_runtime()
     report = CheckReport("Exercise 06 - configurable overheat monitor")
     overrides = [Parameter("status_topic", value=STATUS_TOPIC)]
@@ -76,12 +81,12 @@ def check_overheat_monitor(node_class, rt=None) -> CheckReport:
                       hint="def __init__(self, **kwargs): super().__init__('overheat_monitor', **kwargs)")
     if node is None:
         return report
-    probe = _Probe(rt)
+    probe = rt.add(OverheatProbe, rt, console=False)
     try:
         if _check_declarations(report, node):
-            _check_behaviour(rt, report, probe)
+            _check_behaviour(report, probe)
     finally:
-        rt.remove(probe.node)
+        rt.remove(probe)
         rt.remove(node)
     return report
 
@@ -112,7 +117,7 @@ def _check_declarations(report: CheckReport, node: Node) -> bool:
     return not wrong
 
 
-def _check_behaviour(rt, report: CheckReport, probe: _Probe) -> None:
+def _check_behaviour(report: CheckReport, probe: OverheatProbe) -> None:
     if not report.add(f"it publishes its status on status_topic ({STATUS_TOPIC})",
                       poll_until(lambda: probe.latest() is not None, 3.0), "",
                       "Create the publisher with the *value* of status_topic, and a timer at rate_hz."):
@@ -127,17 +132,17 @@ def _check_behaviour(rt, report: CheckReport, probe: _Probe) -> None:
                    got == expected, "" if got == expected else f"got {got!r}",
                    "Compare the latest temperature with the *current* parameter values in the timer "
                    "callback: >= critical_c is 'critical', >= warning_c is 'warning', else 'ok'.")
-    accepted = probe.set("critical_c", 90.0).successful
+    accepted = probe.set_remote("critical_c", 90.0).successful
     got = probe.status_after(None, "warning")
     report.add("after critical_c is set to 90, 85 °C becomes 'warning'", accepted and got == "warning",
                "" if accepted and got == "warning" else
                ("the change was rejected" if not accepted else f"got {got!r}"),
                "Read the thresholds with self.get_parameter(...).value when classifying.")
-    default_rate = probe.rate()
+    default_rate = probe.status_rate()
     report.add("it publishes at about 5 Hz by default", 3.5 <= default_rate <= 6.5,
                "" if 3.5 <= default_rate <= 6.5 else "measured a rate far from 5 Hz")
-    accepted = probe.set("rate_hz", 20.0).successful
-    fast = probe.rate()
+    accepted = probe.set_remote("rate_hz", 20.0).successful
+    fast = probe.status_rate()
     report.add("after rate_hz is set to 20, it publishes at about 20 Hz", accepted and 14.0 <= fast <= 26.0,
                "" if accepted and 14.0 <= fast <= 26.0 else
                ("the change was rejected" if not accepted else "the rate did not follow"),
@@ -145,18 +150,18 @@ def _check_behaviour(rt, report: CheckReport, probe: _Probe) -> None:
                "int(1e9 / rate_hz).")
 
 
-def _check_rejections(report: CheckReport, probe: _Probe) -> None:
-    result = probe.set("status_topic", "/elsewhere")
+def _check_rejections(report: CheckReport, probe: OverheatProbe) -> None:
+    result = probe.set_remote("status_topic", "/elsewhere")
     report.add("status_topic is read-only (a change is rejected)", not result.successful, "",
                "ParameterDescriptor(read_only=True)")
     for bad in (0.2, 50.0):
-        result = probe.set("rate_hz", bad)
+        result = probe.set_remote("rate_hz", bad)
         report.add(f"rate_hz = {bad:g} is rejected (allowed 1.0 to 20.0)",
                    not result.successful and bool(result.reason), "",
                    "ParameterDescriptor(floating_point_range=[FloatingPointRange(from_value=1.0, "
                    "to_value=20.0, step=0.0)])")
     for name, value in (("warning_c", 90.0), ("critical_c", 50.0)):
-        result = probe.set(name, value)
+        result = probe.set_remote(name, value)
         names_both = "warning_c" in result.reason and "critical_c" in result.reason
         report.add(f"{name} = {value:g} is rejected with a reason naming warning_c and critical_c",
                    not result.successful and names_both,
@@ -164,11 +169,8 @@ def _check_rejections(report: CheckReport, probe: _Probe) -> None:
                    ("accepted" if result.successful else f"reason {result.reason!r}"),
                    "add_on_set_parameters_callback: return SetParametersResult(successful=False, "
                    "reason='warning_c (...) must be below critical_c (...)') when warning_c >= critical_c.")
-    probe.set("critical_c", 80.0)  # undo a wrongly accepted change, so the next criteria stay meaningful
-    result = probe.set("warning_c", 50.0)
+    probe.set_remote("critical_c", 80.0)  # undo a wrongly accepted change: the next criteria stay meaningful
+    result = probe.set_remote("warning_c", 50.0)
     report.add("warning_c = 50 is accepted", result.successful,
                "" if result.successful else f"reason {result.reason!r}",
                "Only reject when warning_c >= critical_c; accept everything else.")
-
-
-

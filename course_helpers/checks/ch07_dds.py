@@ -9,13 +9,23 @@ from __future__ import annotations
 
 import time
 
-from course_helpers.checks import CheckReport, poll_until
+from course_helpers.chapters.ch07_dds import ReportingListener, heard_lines
+from course_helpers.checks import CheckReport
+from course_helpers.core.domains import reserve_spare_domain
+from course_helpers.core.names import as_full_name
+from course_helpers.core.waiting import poll_until
+from course_helpers.nodes import Talker
 
 ROLES = ("talker", "listener", "monitor", "loner")
 ALLOWED_VARIABLES = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")
 ALLOWED_RANGES = ("OFF", "LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
 UNWANTED_VISIBILITY_WAIT_S = 4.5
 _NODES = {"talker": "team_talker", "listener": "team_listener", "monitor": "monitor", "loner": "loner"}
+# role -> (child-process target, its arguments besides the node name); each node names its process
+_TARGETS = {"talker": (Talker, {"topic": "team_chatter", "rate_hz": 10.0}),
+            "listener": (ReportingListener, {"topic": "team_chatter"}),
+            "monitor": (Talker, {"topic": "monitor_status", "rate_hz": 1.0}),
+            "loner": (Talker, {"topic": "loner_chatter", "rate_hz": 1.0})}
 
 
 def _validate(plan_result, kernel_domain: int, spare_domain: int) -> list[str]:
@@ -53,13 +63,28 @@ def _validate(plan_result, kernel_domain: int, spare_domain: int) -> list[str]:
     return problems
 
 
+class _Visibility:
+    """Which of the nodes that should stay hidden the kernel has seen in its graph so far."""
+
+    def __init__(self, rt):
+        self.rt = rt
+        self.team = self.loner = False
+
+    def everything(self) -> bool:
+        """Look at the graph once; True when both the team and the loner have been seen."""
+        nodes = self.rt.graph_nodes()
+        self.team = self.team or any(as_full_name(_NODES[role]) in nodes for role in ("talker", "listener"))
+        self.loner = self.loner or as_full_name(_NODES["loner"]) in nodes
+        return self.team and self.loner
+
+
 def check_domain_plan(plan, rt=None) -> CheckReport:
     """Run the four nodes with the environments ``plan(kernel_domain, spare_domain)`` returns.
 
-    Passes when: the team's listener hears the team's talker; the notebook cannot see the team;
-    the notebook sees the monitor; nobody in the kernel's domain sees the loner.
+    ``plan`` is the student's function; ``rt`` the runtime (the kernel's by default). Returns a
+    :class:`CheckReport`. Passes when: the team's listener hears the team's talker; the notebook
+    cannot see the team; the notebook sees the monitor; nobody in the kernel's domain sees the loner.
     """
-    from course_helpers.chapters.ch07_dds.dds import heard_lines, reserve_spare_domain
     from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
@@ -80,17 +105,9 @@ def check_domain_plan(plan, rt=None) -> CheckReport:
     env = {role: {k: str(v) for k, v in result[role].items()} for role in ROLES}
     try:
         started = time.monotonic()
-        rt.spawn("team_talker", "course_helpers.nodes:make_talker",
-                 params={"name": _NODES["talker"], "topic": "team_chatter", "rate_hz": 10.0},
-                 env=env["talker"])
-        listener = rt.spawn("team_listener", "course_helpers.chapters.ch07_dds.dds:make_printing_listener",
-                            params={"name": _NODES["listener"], "topic": "team_chatter"}, env=env["listener"])
-        rt.spawn("monitor", "course_helpers.nodes:make_talker",
-                 params={"name": _NODES["monitor"], "topic": "monitor_status", "rate_hz": 1.0},
-                 env=env["monitor"])
-        rt.spawn("loner", "course_helpers.nodes:make_talker",
-                 params={"name": _NODES["loner"], "topic": "loner_chatter", "rate_hz": 1.0}, env=env["loner"])
-        heard = poll_until(lambda: heard_lines(listener), 8.0)
+        children = {role: rt.spawn(_NODES[role], target, params={"name": _NODES[role], **params},
+                                   env=env[role]) for role, (target, params) in _TARGETS.items()}
+        heard = poll_until(lambda: heard_lines(children["listener"]), 8.0)
         report.add("the team's listener hears the team's talker", bool(heard),
                    "" if heard else "nothing heard in 8 s",
                    hint="Both must share a domain and be able to discover each other (a discovery range "
@@ -101,14 +118,10 @@ def check_domain_plan(plan, rt=None) -> CheckReport:
                    hint="The monitor must be in the kernel's domain with a discovery range that reaches you.")
         # Discovery sometimes waits one announcement period (about 3 s): give unwanted visibility
         # a fair chance before declaring the team and the loner hidden.
-        team = ("/team_talker", "/team_listener")
-        deadline = started + UNWANTED_VISIBILITY_WAIT_S
-        seen_team = seen_loner = False
-        while time.monotonic() < deadline and not (seen_team and seen_loner):
-            seen = rt.graph_nodes()
-            seen_team = seen_team or any(n in seen for n in team)
-            seen_loner = seen_loner or "/loner" in seen
-            time.sleep(0.1)
+        seen = _Visibility(rt)
+        poll_until(seen.everything, max(0.0, started + UNWANTED_VISIBILITY_WAIT_S - time.monotonic()),
+                   period=0.1)
+        seen_team, seen_loner = seen.team, seen.loner
         report.add("your notebook cannot see the team", not seen_team,
                    "a team node is in your graph" if seen_team else "",
                    hint="Put the team in another domain: the spare one reserved for you.")
@@ -117,8 +130,7 @@ def check_domain_plan(plan, rt=None) -> CheckReport:
                    hint="Without leaving the domain, a node can switch automatic discovery off: "
                         "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF.")
     finally:
-        for label in ("team_talker", "team_listener", "monitor", "loner"):
-            rt.stop_child(label)
+        rt.stop_children(_NODES.values())
     return report
 
 

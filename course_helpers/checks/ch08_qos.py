@@ -12,18 +12,20 @@ from __future__ import annotations
 
 import time
 
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import (
     QoSDurabilityPolicy,
     QoSHistoryPolicy,
     QoSProfile,
     QoSReliabilityPolicy,
-    qos_policy_name_from_kind,
     qos_profile_sensor_data,
 )
+from sensor_msgs.msg import Image
 
+from course_helpers.chapters.ch08_qos import ROBOT_CMD_QOS, RobotCmdPublisher, explain_compatibility, try_pair
 from course_helpers.checks import CheckReport
+from course_helpers.core.qos_dict import qos_from_dict, qos_to_dict
+from course_helpers.core.waiting import poll_until
 
 CHANNELS = ("camera", "lidar", "joint_states", "estop")
 CAMERA_RATE_HZ = 30.0
@@ -31,57 +33,58 @@ CONSUMER_WORK_S = 0.15  # the perception node's processing time per frame
 MAX_FRAME_AGE_S = 0.25
 
 
-# ====================================================================== child: a camera driver
-def make_camera_driver(qos: dict, rate_hz: float = CAMERA_RATE_HZ, width: int = 640, height: int = 480):
-    """Child-process target: a camera driver publishing mono8 images stamped with the time they were taken."""
-    from sensor_msgs.msg import Image
+# ====================================================================== nodes
+class CameraDriver(Node):
+    """Publishes mono8 images of ``width`` x ``height`` at ``rate_hz``, stamped with the time they were
+    taken, on camera/image_raw with the QoS given as a dict (a child-process target)."""
 
-    from course_helpers.chapters.ch08_qos.qos import qos_from_dict
+    def __init__(self, qos: dict, rate_hz: float = CAMERA_RATE_HZ, width: int = 640, height: int = 480):
+        super().__init__("camera_driver")
+        self.publisher = self.create_publisher(Image, "camera/image_raw", qos_from_dict(qos))
+        self.frame = Image(height=height, width=width, encoding="mono8", step=width,
+                           data=bytes(width * height))
+        self.timer = self.create_timer(1.0 / rate_hz, self.capture)  # period in seconds
 
-    node = Node("camera_driver")
-    publisher = node.create_publisher(Image, "camera/image_raw", qos_from_dict(qos))
-    frame = Image(height=height, width=width, encoding="mono8", step=width, data=bytes(width * height))
+    def capture(self) -> None:
+        self.frame.header.stamp = self.get_clock().now().to_msg()
+        self.publisher.publish(self.frame)
 
-    def capture():
-        frame.header.stamp = node.get_clock().now().to_msg()
-        publisher.publish(frame)
 
-    node.timer = node.create_timer(1.0 / rate_hz, capture)
-    return node
+class SlowConsumer(Node):
+    """Takes :data:`CONSUMER_WORK_S` per camera frame and notes each frame's age when work starts.
+
+    Ages (seconds from the frame's stamp) are kept in :attr:`ages` once ``warm_up`` seconds have
+    passed since the first frame (the queue fills up meanwhile).
+    """
+
+    def __init__(self, qos: QoSProfile, warm_up: float):
+        super().__init__("perception")
+        self.warm_up = warm_up
+        self.first_frame_at: float | None = None  # time.monotonic()
+        self.ages: list[float] = []
+        self.subscription = self.create_subscription(Image, "camera/image_raw", self.work, qos)
+
+    def work(self, frame: Image) -> None:
+        now = self.get_clock().now()
+        if self.first_frame_at is None:
+            self.first_frame_at = time.monotonic()
+        if time.monotonic() - self.first_frame_at > self.warm_up:
+            stamp_ns = frame.header.stamp.sec * 10**9 + frame.header.stamp.nanosec
+            self.ages.append((now.nanoseconds - stamp_ns) / 1e9)
+        time.sleep(CONSUMER_WORK_S)  # stands for the perception work; blocks like real work would
+
+    def watched_for(self, seconds: float) -> bool:
+        """True once ``warm_up`` + ``seconds`` have passed since the first frame."""
+        started = self.first_frame_at
+        return started is not None and time.monotonic() - started >= self.warm_up + seconds
 
 
 # ====================================================================== helpers
-def _live_pair(rt, msg_type, topic, pub_qos, sub_qos, make_msg, seconds=1.0, before_subscribing=None):
-    """Publish on ``topic`` with ``pub_qos`` every 50 ms; a subscription with ``sub_qos`` listens.
-
-    ``before_subscribing``: number of messages published once before the subscription exists
-    (then the publisher stays silent: a late joiner can only get stored messages).
-    Returns (messages received, incompatible policies seen by the subscription).
-    """
-    received, incompatible = [], []
-    pub_node = rt.node("qos_check_publisher", console=False)
-    publisher = pub_node.create_publisher(msg_type, topic, pub_qos)
-    if before_subscribing is not None:
-        for _ in range(before_subscribing):
-            publisher.publish(make_msg())
-        time.sleep(0.3)
-    else:
-        pub_node.create_timer(0.05, lambda: publisher.publish(make_msg()))
-    sub_node = rt.node("qos_check_subscriber", console=False)
-    sub_node.create_subscription(
-        msg_type, topic, received.append, sub_qos,
-        event_callbacks=SubscriptionEventCallbacks(
-            incompatible_qos=lambda s: incompatible.append(qos_policy_name_from_kind(s.last_policy_kind))))
-    try:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end and not incompatible and len(received) < 5:
-            time.sleep(0.02)
-        if before_subscribing is not None:
-            time.sleep(max(0.0, end - time.monotonic()))
-    finally:
-        rt.remove(pub_node)
-        rt.remove(sub_node)
-    return received, sorted(set(incompatible))
+def _live_pair(rt, msg_type, topic, pub_qos, sub_qos, make_msg, published_before=None):
+    """:func:`try_pair` on ``topic``; (messages received, incompatible policies at the subscription)."""
+    pair = try_pair(rt, pub_qos, sub_qos, topic=topic, msg_type=msg_type, make_message=make_msg,
+                    published_before=published_before)
+    return pair.received, pair.subscription_events
 
 
 def _profile_problem(profile) -> str:
@@ -98,7 +101,10 @@ def _depth_text(profile: QoSProfile) -> str:
 
 # ====================================================================== exercise 08.1
 def check_channel_qos(profiles: dict, rt=None) -> CheckReport:
-    """Check a dict {'camera', 'lidar', 'joint_states', 'estop'} -> QoSProfile, live, channel by channel."""
+    """Check a dict {'camera', 'lidar', 'joint_states', 'estop'} -> QoSProfile, live, channel by channel.
+
+    ``rt`` is the runtime (the kernel's by default). Returns a :class:`CheckReport`.
+    """
     from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
@@ -122,10 +128,6 @@ def check_channel_qos(profiles: dict, rt=None) -> CheckReport:
 
 
 def _check_camera(rt, report, qos: QoSProfile) -> None:
-    from sensor_msgs.msg import Image
-
-    from course_helpers.chapters.ch08_qos.qos import qos_to_dict
-
     report.add("camera: BEST_EFFORT (a late frame is worthless; never stall the stream to resend one)",
                qos.reliability == QoSReliabilityPolicy.BEST_EFFORT, f"you chose {_name(qos.reliability)}",
                hint="Video is replaced 30 times a second: retransmitting an old frame only adds delay.")
@@ -139,7 +141,7 @@ def _check_camera(rt, report, qos: QoSProfile) -> None:
                    "KEEP_ALL queues every frame the consumer cannot keep up with",
                    hint="Keep only the newest frame or two: KEEP_LAST with a small depth.")
         return
-    ages = _slow_camera_consumer(rt, qos, qos_to_dict(qos))
+    ages = _slow_camera_consumer(rt, qos)
     if not ages:
         report.add("camera: frames stay fresh at a slow consumer", False, "no frame reached the consumer",
                    hint="Check that the profile can connect to itself (no deadline shorter than 1/30 s).")
@@ -152,41 +154,20 @@ def _check_camera(rt, report, qos: QoSProfile) -> None:
                hint="A deep queue makes the consumer work through old frames. Use a small depth (1-2).")
 
 
-def _slow_camera_consumer(rt, qos: QoSProfile, qos_dict: dict, seconds: float = 1.5,
-                          warm_up: float = 0.7) -> list[float]:
-    """A camera driver in a child process at 30 Hz; a consumer in the kernel taking 150 ms per frame.
+def _slow_camera_consumer(rt, qos: QoSProfile, seconds: float = 1.5, warm_up: float = 0.7) -> list[float]:
+    """A camera driver in a child process at 30 Hz; a :class:`SlowConsumer` in the kernel.
 
-    Returns the age (now - stamp) of each frame when the consumer started working on it,
-    skipping the first ``warm_up`` seconds (the queue fills up).
+    Returns the age of each frame when the consumer started working on it, skipping the first
+    ``warm_up`` seconds.
     """
-    from sensor_msgs.msg import Image
-
-    ages: list[float] = []
-    node = rt.node("perception", console=False)
-    clock = node.get_clock()
-    started = [None]
-
-    def work(frame):
-        now = clock.now()
-        if started[0] is None:
-            started[0] = time.monotonic()
-        if time.monotonic() - started[0] > warm_up:
-            stamp_ns = frame.header.stamp.sec * 10**9 + frame.header.stamp.nanosec
-            ages.append((now.nanoseconds - stamp_ns) / 1e9)
-        time.sleep(CONSUMER_WORK_S)  # stands for the perception work; blocks like real work would
-
-    node.create_subscription(Image, "camera/image_raw", work, qos)
+    consumer = rt.add(SlowConsumer, qos, warm_up, console=False)
     try:
-        rt.spawn("camera_driver", "course_helpers.checks.ch08_qos:make_camera_driver", params={"qos": qos_dict},
-                 wait_for="/camera_driver")
-        end = time.monotonic() + 10.0
-        while time.monotonic() < end and (started[0] is None
-                                          or time.monotonic() - started[0] < warm_up + seconds):
-            time.sleep(0.05)
+        rt.spawn("camera_driver", CameraDriver, params={"qos": qos_to_dict(qos)}, wait_for="/camera_driver")
+        poll_until(lambda: consumer.watched_for(seconds), 10.0)
     finally:
         rt.stop_child("camera_driver")
-        rt.remove(node)
-    return ages
+        rt.remove(consumer)
+    return list(consumer.ages)
 
 
 def _check_lidar(rt, report, qos: QoSProfile) -> None:
@@ -200,9 +181,9 @@ def _check_lidar(rt, report, qos: QoSProfile) -> None:
     report.add("lidar: a consumer with qos_profile_sensor_data receives scans", bool(received) and not bad,
                f"incompatible: {', '.join(bad)}" if bad else ("" if received else "nothing arrived"),
                hint="Most lidar consumers subscribe with the sensor-data profile.")
-    received, bad = _live_pair(rt, LaserScan, "scan_late", qos, qos, scan, before_subscribing=3)
+    received, bad = _live_pair(rt, LaserScan, "scan_late", qos, qos, scan, published_before=3)
     report.add("lidar: a node that starts later gets no old scan", not received and not bad,
-               f"it got {len(received)} scan(s) from before it started" if received else
+               f"it got {received} scan(s) from before it started" if received else
                (f"incompatible: {', '.join(bad)}" if bad else ""),
                hint="A stored scan shows obstacles where they were, not where they are: keep it VOLATILE.")
     small = qos.history == QoSHistoryPolicy.KEEP_LAST and qos.depth <= 10
@@ -236,7 +217,7 @@ def _check_estop(rt, report, qos: QoSProfile) -> None:
 
     report.add("estop: RELIABLE (it must never be lost)", qos.reliability == QoSReliabilityPolicy.RELIABLE,
                f"you chose {_name(qos.reliability)}", hint="Safety commands must be delivered: RELIABLE.")
-    received, bad = _live_pair(rt, EStop, "estop", qos, qos, pressed, before_subscribing=1)
+    received, bad = _live_pair(rt, EStop, "estop", qos, qos, pressed, published_before=1)
     report.add("estop: a controller that starts after the button was pressed still gets it",
                bool(received) and not bad,
                f"incompatible: {', '.join(bad)}" if bad else
@@ -253,13 +234,16 @@ def _check_estop(rt, report, qos: QoSProfile) -> None:
 
 # ====================================================================== exercise 08.2
 def check_mismatched_subscriber(node_class, rt=None) -> CheckReport:
-    """Start the best-effort /robot_cmd publisher in a child process; add the student's node."""
-    from course_helpers.chapters.ch08_qos.qos import ROBOT_CMD_QOS, explain_compatibility, qos_from_dict
+    """Start the best-effort /robot_cmd publisher in a child process; add the student's node.
+
+    ``node_class`` is the student's Node subclass (no constructor arguments); ``rt`` the runtime
+    (the kernel's by default). Returns a :class:`CheckReport`.
+    """
     from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
     report = CheckReport("Exercise 08.2 - fix the mismatched subscriber")
-    rt.spawn("robot_controller", "course_helpers.chapters.ch08_qos.qos:make_robot_cmd_publisher", wait_for="/robot_controller")
+    rt.spawn("robot_controller", RobotCmdPublisher, wait_for="/robot_controller")
     node = None
     try:
         node = report.run("the node starts", lambda: rt.add(node_class, console=False),
@@ -280,9 +264,7 @@ def check_mismatched_subscriber(node_class, rt=None) -> CheckReport:
         if not report.add("it keeps what it receives in self.received", keeps,
                           hint="Start with self.received = [] and append msg.data in the callback."):
             return report
-        end = time.monotonic() + 3.0
-        while time.monotonic() < end and len(node.received) < 3:
-            time.sleep(0.05)
+        poll_until(lambda: len(node.received) >= 3, 3.0)
         got = list(node.received)
         report.add("commands arrive (3 within 3 s)", len(got) >= 3, f"received {len(got)}",
                    hint="No data flows while any policy mismatches; the incompatible-QoS event names it.")

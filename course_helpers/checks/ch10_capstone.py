@@ -29,16 +29,20 @@ A topic may add ``'subscriber_qos'`` when its readers use other settings than it
 
 from __future__ import annotations
 
+from functools import partial
+
 from rclpy.action.graph import (
     get_action_client_names_and_types_by_node,
     get_action_names_and_types,
     get_action_server_names_and_types_by_node,
 )
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 
-from course_helpers.chapters.ch10_capstone.capstone import endpoint_qos, full_name
+from course_helpers.chapters.ch10_capstone import endpoint_qos
 from course_helpers.checks import CheckReport
 from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.names import full_name, split_full_name
+from course_helpers.core.qos_dict import qos_from_dict, qos_to_dict
 from course_helpers.core.validation import interface_name, resolve_interface
 
 # Every interface the warehouse robot uses must appear in a design.
@@ -52,14 +56,17 @@ REQUIRED_TYPES = {
     "course_interfaces/action/Navigate": "the navigation action",
 }
 SENSOR_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/LaserScan", "nav_msgs/msg/Odometry")
-RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
-DURABILITY = {"volatile": DurabilityPolicy.VOLATILE, "transient_local": DurabilityPolicy.TRANSIENT_LOCAL}
+RELIABILITIES = ("reliable", "best_effort")  # what a design may write
+DURABILITIES = ("volatile", "transient_local")
 QOS_HINT = ("QoS is a dict like {'reliability': 'reliable' or 'best_effort', "
             "'durability': 'volatile' or 'transient_local', 'depth': 10}")
 
 
 def qos_from_spec(spec) -> QoSProfile:
-    """A QoSProfile from a design's QoS dict (CourseError naming what is allowed)."""
+    """A KEEP_LAST QoSProfile from a design's QoS dict, or the profile itself if given one.
+
+    Raises CourseError naming what is allowed when a key or a value is not.
+    """
     if isinstance(spec, QoSProfile):
         return spec
     if not isinstance(spec, dict):
@@ -69,22 +76,18 @@ def qos_from_spec(spec) -> QoSProfile:
         raise CourseError(f"unknown QoS keys {sorted(unknown)}; {QOS_HINT}")
     reliability = str(spec.get("reliability", "reliable")).lower()
     durability = str(spec.get("durability", "volatile")).lower()
-    depth = spec.get("depth", 10)
-    if reliability not in RELIABILITY:
+    if reliability not in RELIABILITIES:
         raise CourseError(f"reliability must be 'reliable' or 'best_effort', got {reliability!r}")
-    if durability not in DURABILITY:
+    if durability not in DURABILITIES:
         raise CourseError(f"durability must be 'volatile' or 'transient_local', got {durability!r}")
-    if isinstance(depth, bool) or not isinstance(depth, int) or depth < 1:
-        raise CourseError(f"depth must be a whole number >= 1, got {depth!r}")
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
-                      reliability=RELIABILITY[reliability], durability=DURABILITY[durability])
+    return qos_from_dict({"reliability": reliability, "durability": durability,
+                          "depth": spec.get("depth", 10)})
 
 
 def _policies(qos: QoSProfile) -> tuple[str, str]:
     """(reliability, durability) of a profile as the design writes them."""
-    reliability = {v: k for k, v in RELIABILITY.items()}.get(qos.reliability, str(qos.reliability))
-    durability = {v: k for k, v in DURABILITY.items()}.get(qos.durability, str(qos.durability))
-    return reliability, durability
+    values = qos_to_dict(qos)
+    return values["reliability"], values["durability"]
 
 
 def incompatibility(writer: tuple[str, str], reader: tuple[str, str]) -> str:
@@ -113,7 +116,7 @@ def check_design(design: dict, rt=None, late_joiner_timeout: float = 3.0) -> Che
     namespace, nodes, topics, services, actions = parsed
 
     running = set(rt.graph_nodes())
-    missing = [n for n in nodes if full_name(namespace, n) not in running]
+    missing = [n for n in nodes if _resolve(namespace, n) not in running]
     report.add(f"every declared node runs under {namespace}", not missing,
                f"not running: {', '.join(missing)}" if missing else f"{len(nodes)} nodes",
                f"Compare with %ros2 node list; names are relative to {namespace}.")
@@ -127,8 +130,8 @@ def check_design(design: dict, rt=None, late_joiner_timeout: float = 3.0) -> Che
                "the pick service and the navigation action.")
 
     _check_topics(report, rt, namespace, topics)
-    _check_services(report, rt, namespace, services)
-    _check_actions(report, rt, namespace, actions)
+    _check_servers(report, rt, namespace, services, "service")
+    _check_servers(report, rt, namespace, actions, "action")
     _check_estop(report, rt, namespace, topics, late_joiner_timeout)
     _check_data_flows(report, rt, namespace, topics)
     return report
@@ -217,7 +220,7 @@ def _check_topics(report, rt, namespace, topics) -> None:
     existing = dict(rt.graph.get_topic_names_and_types())
     wrong, endpoints, qos_problems = [], [], []
     for topic in topics:
-        full = full_name(namespace, topic["name"]) if not topic["name"].startswith("/") else topic["name"]
+        full = _resolve(namespace, topic["name"])
         types = existing.get(full)
         if not types:
             wrong.append(f"{full} does not exist")
@@ -231,7 +234,7 @@ def _check_topics(report, rt, namespace, topics) -> None:
         for role, declared, actual in (("publish", topic["publishers"], publishers),
                                        ("subscribe to", topic["subscribers"], subscribers)):
             for name in declared:
-                if full_name(namespace, name) not in actual:
+                if _resolve(namespace, name) not in actual:
                     endpoints.append(f"{name} does not {role} {full}")
         design_writer = _policies(topic["qos"])
         design_reader = _policies(topic["subscriber_qos"])
@@ -253,62 +256,42 @@ def _check_topics(report, rt, namespace, topics) -> None:
                "ask for less than a writer offers, never more.")
 
 
-def _check_services(report, rt, namespace, services) -> None:
-    if not services:
+def _check_servers(report, rt, namespace, entries, kind: str) -> None:
+    """Check each declared service or action (``kind``): its type, its server and its clients."""
+    if not entries:
         return
+    if kind == "service":
+        existing = dict(rt.graph.get_service_names_and_types())
+        served_by = rt.graph.get_service_names_and_types_by_node
+        called_by = rt.graph.get_client_names_and_types_by_node
+        hint = "See %ros2 service list -t and %ros2 node info NODE."
+    else:
+        existing = dict(get_action_names_and_types(rt.graph))
+        served_by = partial(get_action_server_names_and_types_by_node, rt.graph)
+        called_by = partial(get_action_client_names_and_types_by_node, rt.graph)
+        hint = "See %ros2 action list -t and %ros2 action info ACTION."
     problems = []
-    existing = dict(rt.graph.get_service_names_and_types())
-    for service in services:
-        full = full_name(namespace, service["name"])
-        if service["type"] not in existing.get(full, []):
-            problems.append(f"no service {full} of type {service['type']}")
+    for entry in entries:
+        full = _resolve(namespace, entry["name"])
+        if entry["type"] not in existing.get(full, []):
+            problems.append(f"no {kind} {full} of type {entry['type']}")
             continue
-        node, ns = _split(full_name(namespace, service["server"]))
-        try:
-            served = dict(rt.graph.get_service_names_and_types_by_node(node, ns))
-        except Exception:
-            served = {}
-        if full not in served:
-            problems.append(f"{service['server']} does not serve {full}")
-        for client in service["clients"]:
-            node, ns = _split(full_name(namespace, client))
-            try:
-                calls = dict(rt.graph.get_client_names_and_types_by_node(node, ns))
-            except Exception:
-                calls = {}
-            if full not in calls:
+        if full not in _names_by_node(served_by, _resolve(namespace, entry["server"])):
+            problems.append(f"{entry['server']} does not serve {full}")
+        for client in entry["clients"]:
+            if full not in _names_by_node(called_by, _resolve(namespace, client)):
                 problems.append(f"{client} is not a client of {full}")
-    report.add("every declared service exists with its server and clients", not problems,
-               "; ".join(problems[:3]), "See %ros2 service list -t and %ros2 node info NODE.")
+    report.add(f"every declared {kind} exists with its server and clients", not problems,
+               "; ".join(problems[:3]), hint)
 
 
-def _check_actions(report, rt, namespace, actions) -> None:
-    if not actions:
-        return
-    problems = []
-    existing = dict(get_action_names_and_types(rt.graph))
-    for action in actions:
-        full = full_name(namespace, action["name"])
-        if action["type"] not in existing.get(full, []):
-            problems.append(f"no action {full} of type {action['type']}")
-            continue
-        node, ns = _split(full_name(namespace, action["server"]))
-        try:
-            served = dict(get_action_server_names_and_types_by_node(rt.graph, node, ns))
-        except Exception:
-            served = {}
-        if full not in served:
-            problems.append(f"{action['server']} does not serve {full}")
-        for client in action["clients"]:
-            node, ns = _split(full_name(namespace, client))
-            try:
-                calls = dict(get_action_client_names_and_types_by_node(rt.graph, node, ns))
-            except Exception:
-                calls = {}
-            if full not in calls:
-                problems.append(f"{client} is not a client of {full}")
-    report.add("every declared action exists with its server and clients", not problems,
-               "; ".join(problems[:3]), "See %ros2 action list -t and %ros2 action info ACTION.")
+def _names_by_node(query, node: str) -> dict:
+    """``query(name, namespace)`` of the node with full name ``node`` as a dict; {} if there is none."""
+    namespace, name = split_full_name(node)
+    try:
+        return dict(query(name, namespace))
+    except RuntimeError:  # rclpy's RCLError: no such node, or not a valid node name
+        return {}
 
 
 def _check_estop(report, rt, namespace, topics, timeout: float) -> None:
@@ -319,13 +302,12 @@ def _check_estop(report, rt, namespace, topics, timeout: float) -> None:
         return
     topic = estops[0]
     writer, reader = topic["qos"], topic["subscriber_qos"]
-    latched = all(q.reliability == ReliabilityPolicy.RELIABLE
-                  and q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in (writer, reader))
+    latched = all(_policies(q) == ("reliable", "transient_local") for q in (writer, reader))
     report.add("the e-stop is RELIABLE + TRANSIENT_LOCAL on both sides", latched,
                "writer {}/{}, reader {}/{}".format(*_policies(writer), *_policies(reader)),
                "Every e-stop message must arrive (reliable), and a node that starts after the e-stop "
                "was pressed must still learn it (transient_local, depth 1 keeps the current state).")
-    full = full_name(namespace, topic["name"])
+    full = _resolve(namespace, topic["name"])
     try:
         received = rt.wait_for_messages(full, EStop, count=1, timeout=timeout, qos=reader)
         ok, detail = True, f"it received engaged={received[0].engaged} at once"
@@ -343,7 +325,7 @@ def _check_data_flows(report, rt, namespace, topics) -> None:
         if topic["type"] not in SENSOR_TYPES:
             continue
         checked += 1
-        full = full_name(namespace, topic["name"])
+        full = _resolve(namespace, topic["name"])
         try:
             rt.wait_for_messages(full, topic["type"], count=1, timeout=4.0, qos=topic["subscriber_qos"])
         except (WaitTimeout, CourseError):
@@ -355,6 +337,6 @@ def _check_data_flows(report, rt, namespace, topics) -> None:
                    "publisher's in %ros2 topic info -v.")
 
 
-def _split(fqn: str) -> tuple[str, str]:
-    namespace, _, name = fqn.rpartition("/")
-    return name, namespace or "/"
+def _resolve(namespace: str, name: str) -> str:
+    """A design's name (relative to ``namespace``, or absolute) -> its full name."""
+    return name if name.startswith("/") else full_name(namespace, name)

@@ -4,8 +4,9 @@ A child reports what it measured or that it is ready with ``report('ready', node
 Each report is one line ``{"tag": ..., "data": {...}, "t": <monotonic s>}`` written to a
 pipe that the process layer opened for it (its descriptor is in ``COURSE_CHANNEL_FD``).
 The kernel reads the pipe in a thread of its own (:class:`ChannelReader`) and keeps the
-reports by tag, so nothing is ever parsed out of a log. A child started by hand (no pipe)
-prints its reports on stdout instead, so they can still be read.
+reports by tag, so nothing is ever parsed out of a log. Outside a child (a node that reports
+was added in the kernel itself), ``report`` does nothing; ``python -m course_helpers.core.child``
+started by hand, with no pipe, prints its reports on stdout so they can still be read.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ def report(tag: str, **data) -> None:
     """Send one report to the kernel (JSON values only); safe from any thread of the child."""
     line = json.dumps({"tag": tag, "data": data, "t": time.monotonic()}) + "\n"
     fd = os.environ.get(CHANNEL_ENV)
+    if fd is None and os.environ.get("COURSE_CHILD") != "1":
+        return  # not a course child: nobody listens
     with _write_lock:
         if fd is None:
             sys.stdout.write(line)

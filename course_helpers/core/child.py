@@ -100,6 +100,7 @@ def run(spec: str, kwargs: dict) -> int:
 
 def become(program: str, args: list[str]) -> None:
     """Replace this process with ``program`` (the channel is not passed on)."""
+    os.environ.pop("COURSE_CHILD", None)
     fd = os.environ.pop(CHANNEL_ENV, None)
     if fd is not None:
         try:
@@ -110,6 +111,7 @@ def become(program: str, args: list[str]) -> None:
 
 
 def main(argv: list[str]) -> int:
+    os.environ["COURSE_CHILD"] = "1"  # reports go to the channel, or to stdout without one
     die_with_parent()
     if len(argv) >= 3 and argv[1] == "exec":
         become(argv[2], argv[3:])

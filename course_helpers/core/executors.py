@@ -10,6 +10,7 @@ handed to ``on_error``.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable
 
@@ -133,3 +134,49 @@ def plain_executor(kind: str, context, threads: int = 2):
     if kind == "single":
         return SingleThreadedExecutor(context=context)
     return MultiThreadedExecutor(num_threads=threads, context=context)
+
+
+def finish_pending_callbacks(executor) -> None:
+    """Let callbacks already handed to a multi-threaded executor's pool finish before destruction.
+
+    rclpy's ``MultiThreadedExecutor.shutdown`` does not wait for its thread pool; a callback
+    still queued there would run after its node is destroyed and fail.
+    """
+    pool = getattr(executor, "_executor", None)
+    if pool is not None:
+        pool.shutdown(wait=True)
+    for task in getattr(executor, "_futures", []):
+        if task.done():
+            task.exception()  # mark any error as seen
+
+
+@contextlib.contextmanager
+def spinning_alone(runtime, node_factory: Callable, kind: str = "single", threads: int = 2,
+                   name: str = "spin-alone", **kwargs):
+    """Build a node in ``runtime``'s context and spin it in an executor of its own during the block.
+
+    Args:
+        runtime: the course runtime (its context; its nodes are not touched).
+        node_factory: a Node subclass or a function returning a node, called with ``kwargs``.
+        kind: 'single' or 'multi' (a MultiThreadedExecutor with ``threads`` threads).
+        name: the spinning thread's name.
+
+    Yields:
+        The node; nothing else shares its executor, so a measurement is not delayed by the
+        notebook's other nodes. Afterwards the executor is shut down, the node destroyed, and the
+        first exception a callback raised is raised again.
+    """
+    node = runtime.build(node_factory, **kwargs)
+    executor = plain_executor(kind, runtime.context, threads)
+    executor.add_node(node)
+    errors: list[BaseException] = []
+    spinner = SpinThread(executor, name, errors.append).start()
+    try:
+        yield node
+    finally:
+        spinner.stop()
+        executor.shutdown(timeout_sec=5)
+        finish_pending_callbacks(executor)
+        node.destroy_node()
+    if errors:
+        raise errors[0]

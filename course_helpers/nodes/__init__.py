@@ -4,6 +4,6 @@ Each is written the way a student would write it in a package: a Node subclass, 
 instead of a sleep loop, units in comments.
 """
 
-from course_helpers.nodes.chatter import Listener, Talker, make_relay, make_talker
+from course_helpers.nodes.chatter import Listener, Relay, Talker, make_relay, make_talker
 
-__all__ = ["Listener", "Talker", "make_relay", "make_talker"]
+__all__ = ["Listener", "Relay", "Talker", "make_relay", "make_talker"]

@@ -48,14 +48,21 @@ class Listener(Node):
 
 def make_talker(name: str = "talker", topic: str = "chatter", rate_hz: float = 2.0,
                 namespace: str = "") -> Talker:
-    """Child-process target: a :class:`Talker` (``'course_helpers.nodes:make_talker'``)."""
+    """Child-process target: a :class:`Talker` (``rt.spawn('talker', make_talker)``)."""
     return Talker(name=name, topic=topic, rate_hz=rate_hz, namespace=namespace)
 
 
+class Relay(Node):
+    """Republishes every String it hears on ``source`` to ``sink``."""
+
+    def __init__(self, name: str = "relay", source: str = "chatter", sink: str = "chatter_relayed",
+                 namespace: str = ""):
+        super().__init__(name, namespace=namespace)
+        self.publisher = self.create_publisher(String, sink, 10)
+        self.subscription = self.create_subscription(String, source, self.publisher.publish, 10)
+
+
 def make_relay(name: str = "relay", source: str = "chatter", sink: str = "chatter_relayed",
-               namespace: str = "") -> Node:
-    """Child-process target: a node that republishes every String it gets on another topic."""
-    node = Node(name, namespace=namespace)
-    publisher = node.create_publisher(String, sink, 10)
-    node.relay_subscription = node.create_subscription(String, source, publisher.publish, 10)
-    return node
+               namespace: str = "") -> Relay:
+    """Child-process target: a :class:`Relay`."""
+    return Relay(name=name, source=source, sink=sink, namespace=namespace)

@@ -1,4 +1,4 @@
-"""Reference solutions of chapter 03 (topics), checked by ``course_helpers/checks/topics.py``.
+"""Reference solutions of chapter 03 (topics), checked by ``course_helpers/checks/ch03_topics.py``.
 
 1. :class:`TiltMonitor` - warns on ``/safety/tilt_warning`` (std_msgs/String) when the IMU on
    ``/imu`` reports a tilt above 15°.
@@ -17,6 +17,8 @@ from geometry_msgs.msg import Twist
 from rclpy.node import Node
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
+
+from course_helpers.core.waiting import poll_until
 
 
 # ---------------------------------------------------------------------- exercise 1
@@ -103,9 +105,7 @@ def measure_load(node: Node, topics: list[str], duration_s: float = 2.0) -> tupl
 
     subscriptions = [node.create_subscription(Imu, t, make_callback(t), 100, raw=True) for t in topics]
     try:
-        deadline = time.monotonic() + 10.0
-        while len(seen) < len(topics) and time.monotonic() < deadline:
-            time.sleep(0.01)
+        poll_until(lambda: len(seen) == len(topics), 10.0)  # up to 10 s for every first message
         start_messages, start_bytes, start = totals["messages"], totals["bytes"], time.monotonic()
         time.sleep(duration_s)
         elapsed = time.monotonic() - start

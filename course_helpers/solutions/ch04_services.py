@@ -1,4 +1,4 @@
-"""Reference solutions of chapter 04 (services); instructors' CI checks them with ``checks.services``."""
+"""Reference solutions of chapter 04 (services); CI checks them with ``checks.ch04_services``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Reference solution of chapter 05 (actions); instructors' CI checks it with ``checks.actions``."""
+"""Reference solution of chapter 05 (actions); CI checks it with ``checks.ch05_actions``."""
 
 from __future__ import annotations
 

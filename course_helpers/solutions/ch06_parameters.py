@@ -1,4 +1,4 @@
-"""Reference solution of chapter 06 (parameters); instructors' CI checks it with ``checks.params``."""
+"""Reference solution of chapter 06 (parameters); CI checks it with ``checks.ch06_parameters``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Reference solution of chapter 10 (capstone), checked by ``course_helpers/checks/capstone.py``.
+"""Reference solution of chapter 10 (capstone), checked by ``course_helpers/checks/ch10_capstone.py``.
 
 :data:`REFERENCE_DESIGN` lays out the warehouse robot: its nodes, and every topic,
 service and action with its endpoints and QoS. The choices, channel by channel:

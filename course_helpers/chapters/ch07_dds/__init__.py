@@ -1,3 +1,61 @@
-"""Chapter package (see its modules)."""
+"""Chapter 07, DDS and discovery, measured on the live system.
 
-from course_helpers.chapters.ch07_dds.dds import *  # noqa: F401,F403
+* :mod:`.models` - four communication models routed message by message;
+* :mod:`.listener` - a child-process listener that reports what it hears (domains, discovery server);
+  the spare domain and the domain probe come from :mod:`course_helpers.core.domains`;
+* :mod:`.discovery` - how long a new process takes to find the kernel's node;
+* :mod:`.server` - eProsima's discovery server, started and stopped from the notebook;
+* :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;
+* :mod:`.middleware` - the active and the installed rmw implementations;
+* :mod:`.transports` - one message bounced in one process, over shared memory and over UDP;
+* :mod:`.security` - what Fast DDS says when asked for DDS security.
+
+The notebook uses ``from course_helpers.chapters import ch07_dds as dds`` and ``dds.<name>``.
+"""
+
+# ruff: noqa: F401  (every import below is a re-export for the notebook)
+
+from course_helpers.chapters.ch07_dds.discovery import (
+    DiscoveryProbe,
+    DiscoveryTiming,
+    discovery_probe,
+    measure_discovery,
+    summarize_discovery,
+)
+from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
+from course_helpers.chapters.ch07_dds.middleware import installed_rmw_implementations, middleware_report
+from course_helpers.chapters.ch07_dds.models import (
+    MODELS,
+    ModelResult,
+    center_failure_table,
+    compare_models,
+    plot_models,
+    simulate_model,
+)
+from course_helpers.chapters.ch07_dds.names import (
+    DdsEntity,
+    dds_entities,
+    guid_prefix,
+    guid_process_id,
+    guid_vendor,
+    ros_name_from_dds,
+    ros_type_from_dds,
+    show_dds_entities,
+)
+from course_helpers.chapters.ch07_dds.security import secure_node_attempt, try_secure_node
+from course_helpers.chapters.ch07_dds.server import (
+    DiscoveryServer,
+    free_udp_port,
+    start_discovery_server,
+    stop_discovery_servers,
+)
+from course_helpers.chapters.ch07_dds.transports import (
+    TRANSPORT_LABELS,
+    Ping,
+    Pong,
+    TransportResult,
+    measure_transports,
+    plot_transports,
+    run_ping,
+)
+from course_helpers.core.domains import nodes_in_domain, reserve_spare_domain

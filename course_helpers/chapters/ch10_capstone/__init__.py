@@ -1,3 +1,43 @@
-"""Chapter package (see its modules)."""
+"""Chapter 10, the capstone: a warehouse robot built from ordinary rclpy nodes, and tools to study it.
 
-from course_helpers.chapters.ch10_capstone.capstone import *  # noqa: F401,F403
+* :mod:`.channels` - topic names and the QoS profile of each kind of channel;
+* :mod:`.warehouse` - the simulated building: walls, shelves, docks, camera frames, LIDAR rays;
+* :mod:`.robot` - the robot's nodes (camera, LIDAR, base, safety monitor, gripper, status light,
+  perception) and the child-process target of its drivers;
+* :mod:`.navigator` and :mod:`.missions` - the ``navigate`` action server and the mission runner;
+* :mod:`.fleet` - starting a robot (drivers in a child process), several robots by namespace,
+  the operator's e-stop button;
+* :mod:`.states` - the state board that collects every node's latched state;
+* :mod:`.measure`, :mod:`.detectors`, :mod:`.plots` - the troubleshooting section;
+* :mod:`.widgets` - a mission's progress bar.
+
+The notebook uses ``from course_helpers.chapters import ch10_capstone as capstone``; the names it
+and the tests use are re-exported here, the rest is in the modules.
+"""
+
+from course_helpers.chapters.ch10_capstone.detectors import (
+    detect_marker_numpy,
+    detect_marker_python,
+    time_detector,
+)
+from course_helpers.chapters.ch10_capstone.fleet import EStopButton, Robot, start_robot
+from course_helpers.chapters.ch10_capstone.measure import (
+    Delivery,
+    count_missed,
+    endpoint_qos,
+    measure_delivery,
+    qos_table,
+)
+from course_helpers.chapters.ch10_capstone.missions import Mission, MissionRunner
+from course_helpers.chapters.ch10_capstone.plots import plot_deliveries
+from course_helpers.chapters.ch10_capstone.robot import Perception, StatusLight, make_robot_drivers
+from course_helpers.chapters.ch10_capstone.states import StateBoard, collect_states, state_table
+from course_helpers.chapters.ch10_capstone.warehouse import SHELVES, make_frame
+from course_helpers.chapters.ch10_capstone.widgets import mission_progress
+
+__all__ = [
+    "SHELVES", "Delivery", "EStopButton", "Mission", "MissionRunner", "Perception", "Robot", "StateBoard",
+    "StatusLight", "collect_states", "count_missed", "detect_marker_numpy", "detect_marker_python",
+    "endpoint_qos", "make_frame", "make_robot_drivers", "measure_delivery", "mission_progress",
+    "plot_deliveries", "qos_table", "start_robot", "state_table", "time_detector",
+]

@@ -69,22 +69,14 @@ def choose_subscription_qos(rt, topic: str, args) -> QoSProfile:
     publishers = rt.graph.get_publishers_info_by_topic(topic)
     if not publishers:
         return profile
-    reliable = sum(p.qos_profile.reliability == QoSReliabilityPolicy.RELIABLE for p in publishers)
-    transient = sum(p.qos_profile.durability == QoSDurabilityPolicy.TRANSIENT_LOCAL for p in publishers)
-    if reliable == len(publishers):
-        profile.reliability = QoSReliabilityPolicy.RELIABLE
-    else:
-        if reliable:
-            print("Some, but not all, publishers are offering QoSReliabilityPolicy.RELIABLE. Falling back "
-                  "to QoSReliabilityPolicy.BEST_EFFORT as it will connect to all publishers")
-        profile.reliability = QoSReliabilityPolicy.BEST_EFFORT
-    if transient == len(publishers):
-        profile.durability = QoSDurabilityPolicy.TRANSIENT_LOCAL
-    else:
-        if transient:
-            print("Some, but not all, publishers are offering QoSDurabilityPolicy.TRANSIENT_LOCAL. Falling "
-                  "back to QoSDurabilityPolicy.VOLATILE as it will connect to all publishers")
-        profile.durability = QoSDurabilityPolicy.VOLATILE
+    choices = (("reliability", QoSReliabilityPolicy.RELIABLE, QoSReliabilityPolicy.BEST_EFFORT),
+               ("durability", QoSDurabilityPolicy.TRANSIENT_LOCAL, QoSDurabilityPolicy.VOLATILE))
+    for policy, strong, weak in choices:
+        offering = sum(getattr(p.qos_profile, policy) == strong for p in publishers)
+        if 0 < offering < len(publishers):
+            print(f"Some, but not all, publishers are offering {_policy(strong)}. Falling back to "
+                  f"{_policy(weak)} as it will connect to all publishers")
+        setattr(profile, policy, strong if offering == len(publishers) else weak)
     return profile
 
 
@@ -145,3 +137,8 @@ def watch_events(inbox: collections.deque):
 
 def print_warning(node: Node, topic: str, template: str) -> None:
     print(f"[WARN] [{time.time():.9f}] [{node.get_name()}]: {template.format(topic=topic)}")
+
+
+def _policy(value) -> str:
+    """'QoSReliabilityPolicy.RELIABLE', as ros2cli prints a policy value."""
+    return f"{type(value).__name__}.{value.name}"

@@ -66,19 +66,7 @@ class RateMeter:
 
 
 def topic_hz(rt, args):
-    topic = _topic_arg(args.topic_name)
-    msg_class = message_class(discover_type(rt, topic, "hz"))
-    qos = choose_subscription_qos(rt, topic, args)
-    meter = RateMeter(args.window)
-    duration = args.duration or HZ_DEFAULT_S
-    warnings: collections.deque = collections.deque()
-    with temporary_node(rt, "hz") as node:
-        node.create_subscription(msg_class, topic, meter.on_message, qos, raw=True,
-                                 event_callbacks=watch_events(warnings))
-        measure(duration, meter.report, lambda: print_warnings(node, topic, warnings))
-    if meter.received == 0:
-        print(f"(no message received on {topic} within {duration:g} s)")
-    return None
+    return _run_meter(rt, args, "hz", RateMeter(args.window))
 
 
 class BandwidthMeter:
@@ -116,17 +104,22 @@ class BandwidthMeter:
 
 
 def topic_bw(rt, args):
+    return _run_meter(rt, args, "bw", BandwidthMeter(args.window), announce=True)
+
+
+def _run_meter(rt, args, verb: str, meter, announce: bool = False):
+    """Subscribe with ros2cli's QoS choice, feed raw messages to ``meter``, print its reports."""
     topic = _topic_arg(args.topic_name)
-    msg_class = message_class(discover_type(rt, topic, "bw"))
+    msg_class = message_class(discover_type(rt, topic, verb))
     qos = choose_subscription_qos(rt, topic, args)
-    meter = BandwidthMeter(args.window)
     duration = args.duration or HZ_DEFAULT_S
     warnings: collections.deque = collections.deque()
-    with temporary_node(rt, "bw") as node:
+    with temporary_node(rt, verb) as node:
         node.create_subscription(msg_class, topic, meter.on_message, qos, raw=True,
                                  event_callbacks=watch_events(warnings))
-        print(f"Subscribed to [{topic}]")
-        meter.next_report = time.monotonic() + 1.0
+        if announce:
+            print(f"Subscribed to [{topic}]")
+            meter.next_report = time.monotonic() + 1.0
         measure(duration, meter.report, lambda: print_warnings(node, topic, warnings))
     if meter.received == 0:
         print(f"(no message received on {topic} within {duration:g} s)")

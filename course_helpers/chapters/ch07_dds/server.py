@@ -1,0 +1,126 @@
+"""eProsima's discovery server (``fast-discovery-server``), started and stopped from the notebook.
+
+The server runs through the course's process layer (group ``'server'``): it dies with the
+kernel, a re-run stops the old one first, and the layer reaps it at exit.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import sys
+from dataclasses import dataclass
+
+from course_helpers.core import processes
+from course_helpers.core.errors import CourseError
+from course_helpers.core.waiting import poll_until
+
+SERVER_BINARY = "fast-discovery-server"
+SERVER_LABEL = "discovery_server"
+SERVER_GROUP = "server"
+READY_TEXT = "Server is running"  # what the server prints once its participant is up
+
+
+def free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 that nothing is bound to right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def udp_port_bound(port: int, table: str = "/proc/net/udp") -> bool:
+    """True if some socket on this machine is bound to UDP ``port`` (read from ``table``, not probed)."""
+    try:
+        with open(table, encoding="ascii") as handle:
+            rows = handle.read().splitlines()[1:]
+    except OSError:
+        return False
+    wanted = f"{port:04X}"
+    return any(row.split()[1].rpartition(":")[2] == wanted for row in rows if len(row.split()) > 1)
+
+
+def _server_binary() -> str:
+    path = os.path.join(os.path.dirname(sys.executable), SERVER_BINARY)
+    if not os.path.exists(path):
+        raise CourseError(f"{path} is missing: the Fast DDS wheel ships it; run `make lab` again")
+    return path
+
+
+@dataclass
+class DiscoveryServer:
+    """A ``fast-discovery-server`` process (a ``ChildProcess``) listening on 127.0.0.1:``port``."""
+
+    port: int
+    child: processes.ChildProcess
+
+    @property
+    def alive(self) -> bool:
+        """True while the server process runs."""
+        return self.child.alive
+
+    @property
+    def pid(self) -> int:
+        """Its process ID."""
+        return self.child.pid
+
+    @property
+    def returncode(self) -> int | None:
+        """Its exit code, or None while it runs."""
+        return self.child.returncode
+
+    @property
+    def address(self) -> str:
+        """'127.0.0.1:<port>', the value clients put in ROS_DISCOVERY_SERVER."""
+        return f"127.0.0.1:{self.port}"
+
+    def client_env(self) -> dict:
+        """Environment that makes a process a client of this server (server ID 0)."""
+        return {"ROS_DISCOVERY_SERVER": self.address}
+
+    def ready(self) -> bool:
+        """True once its UDP port is bound and it has said that it runs."""
+        return udp_port_bound(self.port) and READY_TEXT in self.child.log()
+
+    def output(self) -> str:
+        """What the server printed (still there after it stopped)."""
+        return self.child.log()
+
+    def stop(self) -> int | None:
+        """Stop the server (SIGTERM, then SIGKILL) and reap it; its exit code."""
+        return processes.stop([self.child.label], group=SERVER_GROUP).get(self.child.label,
+                                                                         self.child.returncode)
+
+    def __repr__(self) -> str:
+        state = "running" if self.alive else f"exited {self.returncode}"
+        return f"<DiscoveryServer {self.address} {state}>"
+
+
+def start_discovery_server(port: int | None = None, timeout: float = 5.0) -> DiscoveryServer:
+    """Start eProsima's discovery server on 127.0.0.1; a server this kernel started earlier stops first.
+
+    Args:
+        port: the UDP port, 1024..65535 (a free one if None).
+        timeout: seconds to wait until it listens.
+
+    Returns the running :class:`DiscoveryServer`. Raises ``CourseError`` with its output if it
+    ends or does not listen within ``timeout``.
+    """
+    port = free_udp_port() if port is None else int(port)
+    if not 1024 <= port <= 65535:
+        raise CourseError(f"port must be 1024..65535, got {port}")
+    argv = processes.program_argv(_server_binary(), "-i", "0", "-l", "127.0.0.1", "-p", str(port))
+    child = processes.start(SERVER_LABEL, argv, group=SERVER_GROUP, channel=False,
+                            stop_signal=signal.SIGTERM)
+    server = DiscoveryServer(port, child)
+    if not (poll_until(lambda: server.ready() or not server.alive, timeout) and server.alive):
+        server.stop()
+        raise CourseError(f"the discovery server did not listen on UDP port {port} within {timeout:g} s. "
+                          f"Its output:\n{child.output_tail(1500)}")
+    return server
+
+
+def stop_discovery_servers() -> None:
+    """Stop and reap the discovery server this kernel started, if any."""
+    processes.stop([SERVER_LABEL], group=SERVER_GROUP)
+

@@ -1,0 +1,105 @@
+"""Deadline: offered and requested deadline-missed events while a publisher pauses."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.qos import QoSProfile
+from std_msgs.msg import String
+
+from course_helpers.chapters.ch08_qos.common import DemoClock, remove_nodes
+from course_helpers.core.errors import CourseError
+from course_helpers.core.qos_dict import seconds_to_duration
+
+
+@dataclass
+class DeadlineResult:
+    """Arrival times and deadline-missed events (seconds since the demo started)."""
+
+    deadline_s: float
+    pause: tuple[float, float]
+    arrivals: list[float]
+    offered_missed: list[tuple[float, int]]  # (time, total_count) at the publisher
+    requested_missed: list[tuple[float, int]]  # (time, total_count) at the subscription
+
+    def missed_during_pause(self, which: str = "requested") -> int:
+        """Deadline-missed events at the subscription ('requested') or the publisher ('offered')
+        while the publisher was silent (up to one deadline after the pause)."""
+        events = self.requested_missed if which == "requested" else self.offered_missed
+        start, end = self.pause
+        return sum(1 for t, _ in events if start < t <= end + self.deadline_s)
+
+    def missed_outside_pause(self, which: str = "requested") -> int:
+        """Deadline-missed events of ``which`` at any other time."""
+        events = self.requested_missed if which == "requested" else self.offered_missed
+        return len(events) - self.missed_during_pause(which)
+
+
+def demo_deadline(rt, period_s: float = 0.1, deadline_s: float = 0.3, pause: tuple = (1.0, 2.0),
+                  duration_s: float = 3.0) -> DeadlineResult:
+    """A publisher sends every ``period_s`` but is silent during ``pause``; both ends ask for ``deadline_s``.
+
+    Args:
+        rt: the kernel's runtime (both nodes run in it).
+        period_s: seconds between messages; shorter than ``deadline_s``.
+        deadline_s: the deadline both ends ask for.
+        pause: (from, until) seconds after the start while the publisher is silent.
+        duration_s: how long the demo runs.
+
+    DDS checks the deadline at both ends: the publisher gets 'offered deadline missed', the
+    subscription 'requested deadline missed', about once per ``deadline_s`` of silence.
+    Returns a :class:`DeadlineResult`.
+    """
+    if not period_s < deadline_s:
+        raise CourseError(f"period_s ({period_s}) must be shorter than deadline_s ({deadline_s})")
+    clock = DemoClock()
+    result = DeadlineResult(deadline_s, tuple(pause), [], [], [])
+    profile = QoSProfile(depth=10, deadline=seconds_to_duration(deadline_s, "deadline_s"))
+    sub_node = rt.node("qos_deadline_sub", console=False)
+    sub_node.create_subscription(
+        String, "qos_deadline", lambda _m: result.arrivals.append(clock.now()), profile,
+        event_callbacks=SubscriptionEventCallbacks(
+            deadline=lambda s: result.requested_missed.append((clock.now(), s.total_count))))
+    pub_node = rt.node("qos_deadline_pub", console=False)
+    publisher = pub_node.create_publisher(
+        String, "qos_deadline", profile,
+        event_callbacks=PublisherEventCallbacks(
+            deadline=lambda s: result.offered_missed.append((clock.now(), s.total_count))))
+    rt.wait_until(lambda: publisher.get_subscription_count() > 0, 5.0, "matching")
+    clock.start = time.monotonic()
+
+    def tick():
+        if not pause[0] <= clock.now() < pause[1]:
+            publisher.publish(String(data="on time"))
+
+    pub_node.create_timer(period_s, tick)
+    try:
+        time.sleep(duration_s)  # the demo runs; the callbacks record what happens
+    finally:
+        remove_nodes(rt, pub_node, sub_node)
+    return result
+
+
+def plot_deadline(result: DeadlineResult):
+    """A matplotlib figure: arrivals as ticks, deadline-missed events as markers, the pause shaded."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(10, 3.0))
+    ax.axvspan(*result.pause, color="#fde68a", alpha=0.6, label="publisher silent")
+    ax.vlines(result.arrivals, 1.65, 2.35, color="#2563eb", linewidth=1)
+    ax.scatter([t for t, _ in result.offered_missed], [1] * len(result.offered_missed), marker="x",
+               color="#dc2626", label="offered deadline missed (publisher)")
+    ax.scatter([t for t, _ in result.requested_missed], [0] * len(result.requested_missed), marker="v",
+               color="#9333ea", label="requested deadline missed (subscription)")
+    ax.set_yticks([0, 1, 2], ["subscription\nevents", "publisher\nevents", "messages\narriving"])
+    ax.set_ylim(-0.6, 2.8)
+    ax.set_xlabel("time (s)")
+    ax.set_title(f"Deadline {result.deadline_s:g} s: events fire while nothing arrives", fontsize=10)
+    ax.legend(fontsize=8, loc="upper center", ncol=3, bbox_to_anchor=(0.5, -0.3))
+    fig.tight_layout()
+    return fig
+
+
+# ====================================================================== lifespan

@@ -1,0 +1,134 @@
+"""Measuring the running robot: what reaches a topic's reader, and each endpoint's QoS.
+
+:func:`measure_delivery` counts the stamped messages on a topic and finds the frames that
+never made it from gaps between the stamps; :func:`endpoint_qos` and :func:`qos_table` read
+the reliability and durability of every endpoint from the live graph.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from geometry_msgs.msg import PointStamped
+from rclpy.qos import QoSProfile
+
+from course_helpers.core.errors import WaitTimeout
+from course_helpers.core.names import full_name, is_hidden
+from course_helpers.core.qos_dict import policy_name
+
+
+@dataclass
+class Delivery:
+    """What arrived on a stamped topic during a measurement."""
+
+    topic: str
+    expected_hz: float
+    seconds: float
+    received: int
+    missed: int
+    mean_age_ms: float
+
+    @property
+    def delivered_hz(self) -> float:
+        """Messages received per second of the measurement [Hz]."""
+        return self.received / self.seconds if self.seconds else 0.0
+
+    @property
+    def missed_fraction(self) -> float:
+        """The share of the camera's frames (0..1) that never produced a message."""
+        total = self.received + self.missed
+        return self.missed / total if total else 1.0
+
+    def __str__(self) -> str:
+        return (f"{self.topic}: {self.delivered_hz:.1f} Hz delivered of {self.expected_hz:g} Hz, "
+                f"{self.missed_fraction:.0%} of frames missed, mean age {self.mean_age_ms:.0f} ms")
+
+
+def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0,
+                     expected_hz: float = 30.0, qos: QoSProfile | int = 50,
+                     first_timeout: float = 8.0) -> Delivery:
+    """Count messages on ``topic`` for ``seconds``; find missed frames from gaps in header stamps.
+
+    Args: ``rt`` the runtime, ``topic`` a topic of stamped messages (``msg_type``),
+    ``expected_hz`` the rate of the source [Hz], ``qos`` the reader's profile or depth.
+    Returns: a :class:`Delivery`; its missed frames come from :func:`count_missed`, its age
+    is receive time minus the camera's stamp (same machine, same clock). The window starts
+    0.3 s after the first message; if nothing arrives within ``first_timeout`` s, the result
+    says 0 messages (all missed). The wait ends at the first message, so the default costs
+    nothing when data flows; it leaves room for a just-spawned node to be matched and to
+    finish its first frame (up to about 3 s on two busy cores).
+    """
+    stamps: list[float] = []
+    ages: list[float] = []
+
+    def on_message(msg) -> None:
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        stamps.append(stamp)
+        ages.append(time.time() - stamp)
+
+    sub = rt.graph.create_subscription(msg_type, topic, on_message, qos)
+    try:
+        try:
+            rt.wait_until(lambda: len(stamps) > 0, first_timeout, f"a first message on {topic}")
+        except WaitTimeout:
+            return Delivery(topic, expected_hz, first_timeout, 0, round(first_timeout * expected_hz),
+                            float("nan"))
+        time.sleep(0.3)  # let the pipeline settle
+        stamps.clear()
+        ages.clear()
+        started = time.monotonic()
+        time.sleep(seconds)
+        elapsed = time.monotonic() - started
+        got = sorted(stamps)
+        age = list(ages)
+    finally:
+        rt.call_in_executor(rt.graph.destroy_subscription, sub)
+    return Delivery(topic, expected_hz, elapsed, len(got), count_missed(got, expected_hz, elapsed),
+                    1000.0 * sum(age) / len(age) if age else float("nan"))
+
+
+def count_missed(stamps: list[float], expected_hz: float, seconds: float) -> int:
+    """Frames that never arrived, from the sorted source ``stamps`` [s] received in ``seconds``.
+
+    A gap of k frame periods between consecutive stamps means k - 1 lost frames. A source
+    at ``expected_hz`` also sent about ``seconds * expected_hz`` frames in the window, so
+    with only a few messages (a very slow callback) the shortfall is counted where the gaps
+    cannot show it. Returns the larger of the two counts.
+    """
+    period = 1.0 / expected_hz
+    in_gaps = sum(max(0, round((b - a) / period) - 1) for a, b in zip(stamps, stamps[1:], strict=False))
+    return max(in_gaps, round(seconds * expected_hz) - len(stamps))
+
+
+def endpoint_qos(rt, topic: str) -> dict[str, list[tuple[str, str, str]]]:
+    """Publishers and subscriptions of ``topic``: (node, reliability, durability), sorted.
+
+    The history depth is not in the list: it is a local setting of each endpoint and is
+    not exchanged during discovery (``ros2 topic info -v`` shows it as UNKNOWN).
+    """
+    def rows(infos):
+        return sorted((full_name(i.node_namespace, i.node_name),
+                       policy_name(i.qos_profile.reliability).lower(),
+                       policy_name(i.qos_profile.durability).lower())
+                      for i in infos)
+
+    return {"publishers": rows(rt.graph.get_publishers_info_by_topic(topic)),
+            "subscriptions": rows(rt.graph.get_subscriptions_info_by_topic(topic))}
+
+
+def qos_table(rt, namespace: str, topics: list[str]) -> str:
+    """Who publishes and subscribes each of ``topics`` (relative to ``namespace``), with their QoS.
+
+    Returns: an aligned text table, one row per endpoint (hidden nodes left out).
+    """
+    lines = [f"{'topic':<26} {'endpoint':<10} {'node':<28} {'reliability':<12} durability"]
+    for topic in topics:
+        full = topic if topic.startswith("/") else full_name(namespace, topic)
+        info = endpoint_qos(rt, full)
+        for kind, label in (("publishers", "pub"), ("subscriptions", "sub")):
+            for node, reliability, durability in info[kind]:
+                if is_hidden(node):
+                    continue  # the runtime's own hidden node
+                lines.append(f"{full:<26} {label:<10} {node:<28} {reliability:<12} {durability}")
+    return "\n".join(lines)
