@@ -16,20 +16,27 @@ Usage: python benchmarks/qos_lab_soak.py [--runs 20]
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
 
+from course_interfaces.msg import ExperimentSample
+from rclpy.node import Node
+
 from course_helpers import get_runtime
-from course_helpers.chapters.ch08b_lab.engine import (
+from course_helpers.chapters.ch08b_lab import (
     CHILD_LABEL,
     ExperimentConfig,
-    make_qos,
+    LabPublisher,
     preset,
+    qos_lab,
     run_experiment,
-    transport_env,
 )
+from course_helpers.core.dds_config import udp_loopback_env
+from course_helpers.core.qos_dict import qos_from_dict
+from course_helpers.core.waiting import wait_until
+
+QUIET_S = 0.3  # the queued samples have drained when nothing arrived for this long
 
 
 def soak(runs: int) -> int:
@@ -55,45 +62,43 @@ def soak(runs: int) -> int:
     return wins
 
 
+class CountingSubscriber(Node):
+    """A plain rclpy subscriber whose callback only counts (and notes when the last sample came)."""
+
+    def __init__(self, topic: str, qos: dict):
+        super().__init__("plain_baseline_subscriber")
+        self.received = 0
+        self.last_arrival = time.monotonic()
+        self.subscription = self.create_subscription(ExperimentSample, topic, self.on_sample,
+                                                     qos_from_dict(qos))
+
+    def on_sample(self, _msg) -> None:
+        self.received += 1
+        self.last_arrival = time.monotonic()
+
+
 def plain_baseline(config: ExperimentConfig) -> tuple[int, float]:
     """Feed a counting-only rclpy subscriber from the lab's publisher; (received, seconds sending)."""
-    from course_interfaces.msg import ExperimentSample
-
-    from course_helpers.chapters.ch08b_lab.engine import SUMMARY_TAG
-
     rt = get_runtime()
     topic = "/qos_lab/plain_baseline"
-    received = [0]
-    node = rt.node("plain_baseline_subscriber")
-
-    def count(_msg):
-        received[0] += 1
-
-    node.create_subscription(ExperimentSample, topic, count, make_qos(config.qos_dict()))
-    child = rt.spawn(CHILD_LABEL, "course_helpers.chapters.ch08b_lab.engine:make_lab_publisher",
+    node = rt.add(CountingSubscriber, topic, config.qos_dict(), console=False)
+    child = rt.spawn(CHILD_LABEL, LabPublisher,
                      params={"topic": topic, "qos": config.qos_dict(), "rate_hz": config.rate_hz,
                              "payload_bytes": config.payload_bytes, "count": config.count,
                              "deadline_s": config.duration_s * 2 + 2},
-                     env=transport_env(config.transport, rt.log_dir))
+                     env=udp_loopback_env(rt.log_dir) if config.transport == "udp" else {})
     try:
-        rt.wait_until(lambda: SUMMARY_TAG in child.log(), timeout=config.duration_s * 3 + 20,
-                      what="the publisher's summary")
-        before = -1
-        while received[0] != before:  # let queued samples drain
-            before = received[0]
-            time.sleep(0.3)
-        line = [ln for ln in child.log().splitlines() if ln.startswith(SUMMARY_TAG)][-1]
-        seconds = json.loads(line[len(SUMMARY_TAG):])["elapsed_s"]
+        summary = child.wait_for_report("summary", config.duration_s * 3 + 20, "the publisher's summary")
+        wait_until(lambda: time.monotonic() - node.last_arrival >= QUIET_S, 30.0,
+                   "the queued samples to drain")
     finally:
         rt.stop_child(CHILD_LABEL)
         rt.remove(node)
-    return received[0], seconds
+    return node.received, summary["elapsed_s"]
 
 
 def throughput_ratio() -> None:
     """Samples per second: the lab's subscriber (alone, and under the live plot) vs a plain one."""
-    from course_helpers.chapters.ch08b_lab.panel import qos_lab
-
     config = ExperimentConfig(reliability="best_effort", depth=1000, rate_hz=5000, payload_bytes=16,
                               duration_s=2.0, label="throughput")
     lab = run_experiment(config)

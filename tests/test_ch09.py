@@ -8,7 +8,8 @@ import subprocess
 import pytest
 
 from course_helpers import CourseError
-from course_helpers.chapters.ch09_packages.workspace import (
+from course_helpers.chapters.ch09_packages import (
+    MessagePublisher,
     Workspace,
     build_interface_package,
     create_interface_package,
@@ -128,7 +129,7 @@ def test_new_message_is_built_loaded_and_used_across_processes(rt):
                                           messages={"BinLevel": "string bin_id\nfloat32 fill_ratio"})
         built = build_interface_package(source, ws.root / "install_msgs")
         module = load_interfaces(built)
-        rt.spawn("bin_sensor", "course_helpers.chapters.ch09_packages.workspace:make_message_publisher",
+        rt.spawn("bin_sensor", MessagePublisher,
                  params={"type_name": "chapter09_test_msgs/msg/BinLevel", "topic": "bins",
                          "fields": {"bin_id": "A3", "fill_ratio": 0.5}, "name": "bin_sensor"},
                  env=interface_env(built), wait_for="/bin_sensor")

@@ -10,18 +10,19 @@ publishes. The workspace and the process are removed afterwards.
 from __future__ import annotations
 
 import re
-import signal
 import tempfile
 from pathlib import Path
 
-from course_helpers.chapters.ch09_packages.workspace import (
+from course_helpers.chapters.ch09_packages import (
     Workspace,
     read_manifest,
     stop_process,
     wait_for_process_node,
 )
 from course_helpers.checks import CheckReport
-from course_helpers.core.errors import CourseError
+from course_helpers.core.errors import CourseError, WaitTimeout
+
+CTRL_C_EXIT_S = 5.0  # s a node may take to leave after Ctrl+C
 
 PACKAGE = "robot_heartbeat"
 EXECUTABLE = "heartbeat"
@@ -36,9 +37,16 @@ def check_package(files: dict, package: str = PACKAGE, executable: str = EXECUTA
                   dependencies: tuple[str, ...] = DEPENDENCIES, rt=None) -> CheckReport:
     """Build ``files`` as package ``package`` and run ``ros2 run package executable``.
 
-    Passes when the package builds as an ament_python package, the executable is
-    installed where ``ros2 run`` looks, its process shows node ``node`` in the graph,
-    messages of ``msg_type`` arrive on ``topic``, and Ctrl+C stops it cleanly.
+    Args:
+        files: the package's files, relative path -> text.
+        package, executable, node, topic, msg_type, dependencies: what the exercise asks for.
+        rt: the runtime whose graph is watched (default: this kernel's).
+
+    Returns:
+        A :class:`CheckReport`. It passes when the package builds as an ament_python
+        package, the executable is installed where ``ros2 run`` looks, its process shows node
+        ``node`` in the graph, messages of ``msg_type`` arrive on ``topic``, and Ctrl+C
+        stops it cleanly.
     """
     from course_helpers.core.runtime import get_runtime
 
@@ -156,14 +164,13 @@ def _run_and_listen(report: CheckReport, rt, ws: Workspace, package: str, execut
             heard, detail = False, str(exc).splitlines()[0]
         report.add(f"messages arrive on {topic} from the packaged node", heard, detail,
                    f"Publish {msg_type} on '{topic.strip('/')}' from a timer.")
-        child.process.send_signal(signal.SIGINT)  # what Ctrl+C in the terminal of `ros2 run` sends
+        child.request_stop()  # SIGINT: what Ctrl+C in the terminal of `ros2 run` sends
         try:
-            code = child.process.wait(timeout=5.0)
-        except Exception:
+            code = child.wait_for_exit(CTRL_C_EXIT_S, "it to leave after Ctrl+C")
+        except WaitTimeout:
             code = None
-        clean = code == 0
-        report.add("Ctrl+C stops it cleanly (exit code 0)", clean,
-                   "still running after 5 s" if code is None else f"exit code {code}",
+        report.add("Ctrl+C stops it cleanly (exit code 0)", code == 0,
+                   f"still running after {CTRL_C_EXIT_S:g} s" if code is None else f"exit code {code}",
                    "Catch KeyboardInterrupt (and rclpy.executors.ExternalShutdownException) around "
                    "rclpy.spin(), then destroy the node and call rclpy.try_shutdown().")
     finally:

@@ -40,6 +40,9 @@ def wait_until(predicate: Callable[[], object], timeout: float, what: str) -> bo
     return True
 
 
-def sleep_unless(stop: Callable[[], object], seconds: float) -> bool:
-    """Sleep ``seconds`` but wake early when ``stop()`` becomes true; True if stopped early."""
-    return poll_until(stop, seconds)
+def sleep_unless(stop: Callable[[], object], seconds: float, period: float = POLL_PERIOD_S) -> bool:
+    """Sleep ``seconds`` but wake early when ``stop()`` becomes true; True if stopped early.
+
+    ``period`` is how often ``stop`` is checked: a longer one costs a busy process less.
+    """
+    return poll_until(stop, seconds, period)

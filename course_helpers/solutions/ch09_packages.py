@@ -1,4 +1,4 @@
-"""Reference solution of chapter 09 (packages), checked by ``course_helpers/checks/packages.py``.
+"""Reference solution of chapter 09 (packages), checked by ``course_helpers/checks/ch09_packages.py``.
 
 :func:`reference_package` returns the files of the ``robot_heartbeat`` package: the
 heartbeat node of the notebook as a module with a ``main()``, and the package.xml,
@@ -7,6 +7,8 @@ package with the console script ``heartbeat``.
 """
 
 from __future__ import annotations
+
+from course_helpers.chapters.ch09_packages import ament_python_files
 
 HEARTBEAT_MODULE = '''\
 import rclpy
@@ -39,62 +41,17 @@ def main(args=None):
         rclpy.try_shutdown()
 '''
 
-PACKAGE_XML = '''\
-<?xml version="1.0"?>
-<package format="3">
-  <name>robot_heartbeat</name>
-  <version>0.1.0</version>
-  <description>Publishes a heartbeat so that a fleet manager knows the robot is alive</description>
-  <maintainer email="student@example.com">Course Student</maintainer>
-  <license>Apache-2.0</license>
-
-  <exec_depend>rclpy</exec_depend>
-  <exec_depend>std_msgs</exec_depend>
-
-  <export>
-    <build_type>ament_python</build_type>
-  </export>
-</package>
-'''
-
-SETUP_PY = '''\
-from setuptools import setup
-
-package_name = 'robot_heartbeat'
-
-setup(
-    name=package_name,
-    version='0.1.0',
-    packages=[package_name],
-    data_files=[
-        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
-        ('share/' + package_name, ['package.xml']),
-    ],
-    install_requires=['setuptools'],
-    zip_safe=True,
-    entry_points={
-        'console_scripts': [
-            'heartbeat = robot_heartbeat.heartbeat:main',
-        ],
-    },
-)
-'''
-
-SETUP_CFG = '''\
-[develop]
-script_dir=$base/lib/robot_heartbeat
-[install]
-install_scripts=$base/lib/robot_heartbeat
-'''
+PACKAGE = "robot_heartbeat"
+DESCRIPTION = "Publishes a heartbeat so that a fleet manager knows the robot is alive"
 
 
 def reference_package() -> dict[str, str]:
-    """The files of the robot_heartbeat package (relative path -> text)."""
-    return {
-        "package.xml": PACKAGE_XML,
-        "setup.py": SETUP_PY,
-        "setup.cfg": SETUP_CFG,
-        "resource/robot_heartbeat": "",
-        "robot_heartbeat/__init__.py": "",
-        "robot_heartbeat/heartbeat.py": HEARTBEAT_MODULE,
-    }
+    """The files of the robot_heartbeat package: relative path -> text.
+
+    package.xml, setup.py, setup.cfg and the marker are what ``ros2 pkg create`` writes
+    (:func:`course_helpers.chapters.ch09_packages.ament_python_files`), with rclpy and
+    std_msgs as dependencies and ``heartbeat = robot_heartbeat.heartbeat:main`` as the
+    console script; the node module is :data:`HEARTBEAT_MODULE`.
+    """
+    return ament_python_files(PACKAGE, "heartbeat", dependencies=["rclpy", "std_msgs"],
+                              description=DESCRIPTION, node_source=HEARTBEAT_MODULE)

@@ -1,3 +1,41 @@
-"""Chapter package (see its modules)."""
+"""The QoS lab (notebook ``08b_qos_lab``): real experiments with QoS profiles, a widget panel, plots.
 
-from course_helpers.chapters.ch08b_lab.engine import *  # noqa: F401,F403
+* ``config``: :class:`ExperimentConfig`, its limits, ``PRESETS`` and :func:`preset`;
+* ``publisher``: :class:`LabPublisher`, the node that runs in a child process;
+* ``subscriber``: :class:`LabSubscriber`, the counting node in the kernel;
+* ``run``: :func:`run_experiment`, one run from start to clean-up;
+* ``results``: :class:`Snapshot` and :class:`ExperimentResult`;
+* ``plots``: :func:`draw_results` and the live :class:`ResultsFigure`;
+* ``panel``: :func:`qos_lab`, the widget panel.
+"""
+
+from __future__ import annotations
+
+from course_helpers.chapters.ch08b_lab.config import (
+    MAX_DEPTH,
+    MAX_PAYLOAD_BYTES,
+    PRESETS,
+    TRANSPORTS,
+    ExperimentConfig,
+    preset,
+)
+from course_helpers.chapters.ch08b_lab.publisher import CHILD_LABEL, LabPublisher
+from course_helpers.chapters.ch08b_lab.results import ExperimentResult, Snapshot
+from course_helpers.chapters.ch08b_lab.run import run_experiment
+from course_helpers.chapters.ch08b_lab.subscriber import LabSubscriber
+
+__all__ = ["CHILD_LABEL", "MAX_DEPTH", "MAX_PAYLOAD_BYTES", "PRESETS", "TRANSPORTS", "ExperimentConfig",
+           "ExperimentResult", "LabPublisher", "LabSubscriber", "QoSLab", "ResultsFigure", "Snapshot",
+           "draw_results", "preset", "qos_lab", "run_experiment"]
+
+_LAZY = {"qos_lab": "panel", "QoSLab": "panel", "draw_results": "plots", "ResultsFigure": "plots"}
+
+
+def __getattr__(name: str):
+    # The panel and the plots load ipywidgets and matplotlib (almost a second) on first use, so
+    # that the publisher's child process, which imports this package, does not pay for them.
+    if name in _LAZY:
+        from importlib import import_module
+
+        return getattr(import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

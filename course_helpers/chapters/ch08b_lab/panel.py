@@ -1,10 +1,10 @@
-"""The QoS lab panel (chapter 08, notebook ``08b_qos_lab``): widgets over ``run_experiment``.
+"""The QoS lab panel: widgets over ``run_experiment``.
 
 ``lab = qos_lab()`` shows a panel: the QoS of both ends (reliability, durability,
 history, depth), the load (rate, payload size, the subscriber's processing time,
 transport, duration, late joiner), Run / Stop / Compare buttons, one-click preset
 scenarios, a plot that follows a run live and a results table that gains one row
-per run. The measuring is done by :func:`course_helpers.chapters.ch08b_lab.engine.run_experiment`
+per run. The measuring is done by :func:`course_helpers.chapters.ch08b_lab.run.run_experiment`
 in a background thread, so the notebook's other cells keep running meanwhile; the
 plot is drawn by :class:`course_helpers.chapters.ch08b_lab.plots.ResultsFigure`.
 
@@ -21,10 +21,18 @@ import time
 
 import ipywidgets as widgets
 
-from course_helpers.chapters.ch08b_lab import engine as experiments
-from course_helpers.chapters.ch08b_lab.engine import ExperimentConfig, ExperimentResult
+from course_helpers.chapters.ch08b_lab.config import (
+    MAX_DEPTH,
+    MAX_PROCESSING_MS,
+    PRESETS,
+    ExperimentConfig,
+    preset,
+)
 from course_helpers.chapters.ch08b_lab.plots import ResultsFigure
+from course_helpers.chapters.ch08b_lab.results import ExperimentResult
+from course_helpers.chapters.ch08b_lab.run import run_experiment
 from course_helpers.core.errors import CourseError
+from course_helpers.core.units import format_bytes
 
 RATES_HZ = (1, 2, 5, 10, 20, 50, 100, 200, 400, 500, 1000, 2000, 5000)
 PAYLOADS = (16, 256, 1024, 4096, 16384, 65536, 262144, 2**20, 2 * 2**20, 4 * 2**20)
@@ -54,6 +62,8 @@ class QoSLab:
         self.config_b: ExperimentConfig | None = None
         self.frame_hz: float | None = None  # live-plot refresh rate of the last run
         self.frame_seconds = 0.0  # how long the last frame took to draw
+        self.live_frames = 0  # live frames shown while the last start()'s runs were in progress
+        self.draw_cpu_seconds = 0.0  # CPU time the frames of the last start() took to draw
         self._thread: threading.Thread | None = None
         self._busy = False
         self._stop = threading.Event()
@@ -75,13 +85,13 @@ class QoSLab:
                                           description="durability", style=style)
         self.history = w.ToggleButtons(options=[("keep last", "keep_last"), ("keep all", "keep_all")],
                                        description="history", style=style)
-        self.depth = w.BoundedIntText(value=10, min=1, max=experiments.MAX_DEPTH, description="depth",
+        self.depth = w.BoundedIntText(value=10, min=1, max=MAX_DEPTH, description="depth",
                                       style=style, layout=w.Layout(width="200px"))
         self.rate = w.SelectionSlider(options=[(f"{r} Hz", r) for r in RATES_HZ], value=100,
                                       description="rate", style=style, layout=wide)
-        self.payload = w.SelectionSlider(options=[(experiments.format_bytes(b), b) for b in PAYLOADS],
+        self.payload = w.SelectionSlider(options=[(format_bytes(b), b) for b in PAYLOADS],
                                          value=1024, description="payload", style=style, layout=wide)
-        self.processing = w.FloatSlider(value=0.0, min=0.0, max=experiments.MAX_PROCESSING_MS, step=1.0,
+        self.processing = w.FloatSlider(value=0.0, min=0.0, max=MAX_PROCESSING_MS, step=1.0,
                                         description="processing (ms)", readout_format=".0f",
                                         style=style, layout=wide)
         self.transport = w.ToggleButtons(options=[("shared memory", "shm"), ("UDP", "udp")],
@@ -108,7 +118,7 @@ class QoSLab:
         self.clear_button.on_click(self._guard(self._on_clear))
 
         self.preset_buttons = []
-        for name, entry in experiments.PRESETS.items():
+        for name, entry in PRESETS.items():
             button = w.Button(description=name, tooltip=entry["what"], layout=w.Layout(width="auto"))
             button.on_click(self._guard(lambda _b, name=name: self._load_preset(name)))
             self.preset_buttons.append(button)
@@ -242,12 +252,12 @@ class QoSLab:
         if self.running:
             self._set_status("Stop the running experiment before loading a preset.", "warning")
             return
-        configs = experiments.preset(name)
+        configs = preset(name)
         self.config_b = configs[0] if len(configs) == 2 else None
         self._refresh_b_label()
         self.set_config(configs[-1])
         self._validate()
-        what = html.escape(experiments.PRESETS[name]["what"])
+        what = html.escape(PRESETS[name]["what"])
         action = "Press <b>Compare</b> to run B, then the panel." if self.config_b else "Press <b>Run</b>."
         self._set_status(f"Preset <b>{html.escape(name)}</b>: {what} {action}", "info", escape=False)
 
@@ -263,6 +273,7 @@ class QoSLab:
             raise CourseError("an experiment is already running: press Stop first")
         self._stop = threading.Event()
         self._busy = True
+        self.live_frames, self.draw_cpu_seconds = 0, 0.0
         self._thread = threading.Thread(target=self._work, args=(list(configs), self._stop),
                                         name="qos-lab", daemon=True)
         self.run_button.disabled = self.compare_button.disabled = True
@@ -301,13 +312,13 @@ class QoSLab:
                             f"sent, {snap.delivered} delivered, lost {snap.lost_by_sequence} (gaps) / "
                             f"{snap.lost_events} (events), {snap.publish_errors} publish errors", "info")
 
-                result = experiments.run_experiment(config, progress=progress, stop_event=stop,
-                                                    progress_period_s=0.02)
+                result = run_experiment(config, progress=progress, stop_event=stop, progress_period_s=0.02)
                 finished.append(result)
                 self.results.append(result)
                 self._refresh_table()
                 self._show_frame(finished, force=True)
             self.frame_hz = _frame_rate(frames)
+            self.live_frames = sum(len(times) for times in frames)
             lines = "<br>".join(html.escape(r.summary()) for r in finished)
             word = "Stopped" if stop.is_set() else "Done"
             self._set_status(f"{word}. {lines}", "info", escape=False)
@@ -337,7 +348,9 @@ class QoSLab:
         if not force and now - self._last_frame < 1.0 / MAX_FRAME_HZ:
             return False
         self._last_frame = now
+        cpu = time.thread_time()
         self.image.value = self._figure.frame(runs, fit=force, expect=expect)
+        self.draw_cpu_seconds += time.thread_time() - cpu
         self.frame_seconds = time.monotonic() - now
         return True
 

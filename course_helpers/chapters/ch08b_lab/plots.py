@@ -1,10 +1,10 @@
-"""Pictures of QoS lab runs (chapter 08, notebook ``08b_qos_lab``), with or without widgets.
+"""Pictures of QoS lab runs, with or without widgets.
 
 ``draw_results([result_a, result_b])`` draws finished runs from
-``course_helpers.chapters.ch08b_lab.engine.run_experiment`` as a pyplot figure for a notebook
+:func:`course_helpers.chapters.ch08b_lab.run.run_experiment` as a pyplot figure for a notebook
 cell. ``ResultsFigure`` draws the same three panels on a figure it keeps; its
-``frame(runs)`` returns a PNG of runs in progress for the lab panel
-(``qos_lab.py``). Each run has one colour in all three panels:
+``frame(runs)`` returns a PNG of runs in progress for the lab panel (``panel.py``).
+Each run has one colour in all three panels:
 
 1. delivered and lost over time (solid: delivered; dashed: lost by gaps in the
    publication sequence numbers; dotted: DDS ``message_lost`` events; dash-dot:
@@ -300,9 +300,15 @@ def _encode_png(canvas: FigureCanvasAgg) -> bytes:
 
 
 def draw_results(runs, title: str | None = None, width_in: float = 12.0, height_in: float = 4.0):
-    """Draw finished runs (``ExperimentResult`` objects) as a pyplot figure and return it.
+    """Draw finished runs as a pyplot figure and return it.
 
-    End the cell with ``plt.show()`` (or a ``;``) so only the picture is shown.
+    Args:
+        runs: ``ExperimentResult`` objects or ``(label, snapshots)`` pairs (one run alone is fine).
+        title: the figure's title.
+        width_in, height_in: the figure's size in inches.
+
+    Returns:
+        The matplotlib Figure. End the cell with ``plt.show()`` so only the picture is shown.
     """
     import matplotlib.pyplot as plt
 

@@ -1,3 +1,42 @@
-"""Chapter package (see its modules)."""
+"""Packages and interfaces (notebook ``09_packages_and_interfaces``): real colcon and rosidl builds.
 
-from course_helpers.chapters.ch09_packages.workspace import *  # noqa: F401,F403
+* ``workspace``: :class:`Workspace`, a colcon workspace in a temporary directory;
+* ``package_files``: the files of an ament_python or interface package as text;
+* ``colcon``: ``colcon build`` and :class:`ColconBuild`;
+* ``environment``: what ``source install/setup.bash`` does, from colcon's ``.dsv`` hooks;
+* ``executables``: find and run a package's executables as ``ros2 run`` does;
+* ``interfaces``: create, build and load new interface packages; :class:`MessagePublisher`;
+* ``progress``: :func:`build_progress`, a live indicator for builds.
+"""
+
+from __future__ import annotations
+
+from course_helpers.chapters.ch09_packages.colcon import ColconBuild
+from course_helpers.chapters.ch09_packages.executables import (
+    find_executable,
+    running_processes,
+    start_process,
+    stop_process,
+    wait_for_process_node,
+)
+from course_helpers.chapters.ch09_packages.interfaces import (
+    MessagePublisher,
+    build_interface_package,
+    create_interface_package,
+    interface_env,
+    load_interfaces,
+)
+from course_helpers.chapters.ch09_packages.package_files import (
+    ament_python_files,
+    package_xml,
+    read_manifest,
+    setup_cfg,
+    setup_py,
+)
+from course_helpers.chapters.ch09_packages.progress import build_progress
+from course_helpers.chapters.ch09_packages.workspace import Workspace
+
+__all__ = ["ColconBuild", "MessagePublisher", "Workspace", "ament_python_files", "build_interface_package",
+           "build_progress", "create_interface_package", "find_executable", "interface_env",
+           "load_interfaces", "package_xml", "read_manifest", "running_processes", "setup_cfg", "setup_py",
+           "start_process", "stop_process", "wait_for_process_node"]
