@@ -49,7 +49,7 @@ def spinning_alone(node_factory: Callable[..., Node], executor: str = "single", 
     if executor not in EXECUTORS:
         raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
     with core_spinning_alone(get_runtime(), _checked_factory(node_factory), executor, threads,
-                             name=f"spin_for-{executor}", **kwargs) as node:
+                             thread_name=f"spin_for-{executor}", **kwargs) as node:
         yield node
 
 

@@ -295,7 +295,7 @@ def measure_bandwidth(rt, sizes=(100, 10_000, 100_000, 500_000), rate_hz: float 
         raise CourseError(f"rate_hz must be in (0, 500], got {rate_hz!r}")
     samples = []
     # The meter spins alone: the notebook's other nodes cannot delay it.
-    with spinning_alone(rt, BandwidthMeter, name="bandwidth_meter") as meter:
+    with spinning_alone(rt, BandwidthMeter, thread_name="bandwidth_meter") as meter:
         try:
             for size in sizes:
                 wire = message_size(payload_message(size))

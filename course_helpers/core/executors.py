@@ -152,14 +152,14 @@ def finish_pending_callbacks(executor) -> None:
 
 @contextlib.contextmanager
 def spinning_alone(runtime, node_factory: Callable, kind: str = "single", threads: int = 2,
-                   name: str = "spin-alone", **kwargs):
+                   thread_name: str = "spin-alone", **kwargs):
     """Build a node in ``runtime``'s context and spin it in an executor of its own during the block.
 
     Args:
         runtime: the course runtime (its context; its nodes are not touched).
         node_factory: a Node subclass or a function returning a node, called with ``kwargs``.
         kind: 'single' or 'multi' (a MultiThreadedExecutor with ``threads`` threads).
-        name: the spinning thread's name.
+        thread_name: the spinning thread's name.
 
     Yields:
         The node; nothing else shares its executor, so a measurement is not delayed by the
@@ -170,7 +170,7 @@ def spinning_alone(runtime, node_factory: Callable, kind: str = "single", thread
     executor = plain_executor(kind, runtime.context, threads)
     executor.add_node(node)
     errors: list[BaseException] = []
-    spinner = SpinThread(executor, name, errors.append).start()
+    spinner = SpinThread(executor, thread_name, errors.append).start()
     try:
         yield node
     finally:

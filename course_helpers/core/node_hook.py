@@ -91,3 +91,17 @@ def build_nodes(context, factory: Callable, *args,
 def hook_installed() -> bool:
     """True while some thread is building nodes (``Node.__init__`` is patched)."""
     return Node.__init__ is not _ORIGINAL_INIT
+
+
+def destroy_fully(node: Node) -> None:
+    """Destroy a node and the action servers and clients it still holds.
+
+    rclpy's ``Node.destroy_node()`` leaves action servers and clients alive, so the node would
+    linger in the graph; a node class that already destroyed its own has removed them.
+    """
+    from rclpy.action import ActionClient, ActionServer
+
+    node.destroy_node()
+    for waitable in list(node.waitables):
+        if isinstance(waitable, (ActionServer, ActionClient)):
+            waitable.destroy()

@@ -32,6 +32,7 @@ from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_opti
 
 from course_helpers.core import console as _console
 from course_helpers.core import processes
+from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S, apply_course_discovery
 from course_helpers.core.domains import DomainChoice, choose_domain
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.executors import (
@@ -41,7 +42,7 @@ from course_helpers.core.executors import (
 )
 from course_helpers.core.logs import RosoutReader
 from course_helpers.core.names import as_full_name, full_name, node_full_names
-from course_helpers.core.node_hook import build_nodes
+from course_helpers.core.node_hook import build_nodes, destroy_fully
 from course_helpers.core.spawning import ChildProcesses
 from course_helpers.core.validation import (
     check_depth,
@@ -56,9 +57,9 @@ from course_helpers.core.waiting import poll_until, wait_until
 
 INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's daemon nodes
 EXECUTORS = ("single", "multi")
-# A new participant announces itself at once and then periodically; by this long after the
-# runtime started, the participants that were already running have been found.
-GRAPH_SETTLE_S = 1.0
+# A new participant may learn of an older one only at its next periodic announcement (every 3 s
+# outside the course): by this long after the start, the graph shows what was already running.
+GRAPH_SETTLE_S = DEFAULT_ANNOUNCEMENT_S + 0.3
 HEALED_MESSAGE = (
     "[course] ROS was shut down from outside the course runtime (by rclpy.shutdown(), or by an "
     "interrupt while rclpy's signal handler was installed, as a plain rclpy.init() does). The "
@@ -110,6 +111,7 @@ class CourseRuntime(ChildProcesses):
                 self._heal()
                 return self
             self.domain = choose_domain()
+            apply_course_discovery(processes.log_dir())  # before the first participant exists
             self.context = Context()
             args = ["--ros-args", "--disable-stdout-logs"] if self._in_kernel else None
             rclpy.init(args=args, context=self.context, domain_id=self.domain.domain_id,
@@ -283,8 +285,7 @@ class CourseRuntime(ChildProcesses):
         def destroy():
             if self.executor is not None:
                 self.executor.remove_node(node)
-            node.destroy_node()
-            _destroy_actions_of(node)
+            destroy_fully(node)
 
         self._node_consoles.pop(id(node), None)
         self._router.close(node.get_logger().name)
@@ -455,19 +456,6 @@ def _quietly(function: Callable, *args, **kwargs) -> None:
         function(*args, **kwargs)
     except Exception:
         pass
-
-
-def _destroy_actions_of(node: Node) -> None:
-    """Destroy the action servers and clients a node still holds after ``destroy_node()``.
-
-    rclpy's ``Node.destroy_node()`` leaves them alive, so the node would linger in the graph;
-    a node class that already destroyed its own has removed them from the list.
-    """
-    from rclpy.action import ActionClient, ActionServer
-
-    for waitable in list(node.waitables):
-        if isinstance(waitable, (ActionServer, ActionClient)):
-            waitable.destroy()
 
 
 # ---------------------------------------------------------------------- module API
