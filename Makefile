@@ -5,10 +5,15 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.course-installed
 PORT   ?= 8888
+# Parallel test workers. The suite mostly waits (discovery, timers, child processes), so three
+# workers keep a 2-core machine busy; each worker has its own ROS domain. `make test JOBS=1` runs
+# one at a time.
+JOBS   ?= 3
 # Jupyter refuses to run as root (containers, CI machines) unless told it is deliberate.
 ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
+# The slowest honest cell takes about 25 s on a loaded 2-core machine.
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
-          --nbval-cell-timeout=300 -p no:cacheprovider
+          --nbval-cell-timeout=120 -p no:cacheprovider
 
 .PHONY: setup lab test unit notebooks lint bench execute clean
 .DEFAULT_GOAL := lab
@@ -28,20 +33,22 @@ lab: setup
 	$(VENV)/bin/jupyter lab --notebook-dir=notebooks --port=$(PORT) $(ROOT_FLAG)
 
 test: setup
-	$(PY) -m pytest tests -q
-	$(PY) -m pytest $(NBVAL) notebooks -q
+	$(PY) -m pytest tests -q -n $(JOBS) --dist loadgroup
+	$(PY) -m pytest $(NBVAL) -n $(JOBS) --dist loadfile notebooks -q
 
 unit: setup
-	$(PY) -m pytest tests -q
+	$(PY) -m pytest tests -q -n $(JOBS) --dist loadgroup
 
+# Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
-	$(PY) -m pytest $(NBVAL) notebooks -q
+	$(PY) -m pytest $(NBVAL) -n $(JOBS) --dist loadfile notebooks -q
 
 lint: setup
 	$(VENV)/bin/ruff check course_helpers tests benchmarks tools notebooks
 
 bench: setup
 	$(PY) benchmarks/executor_throughput.py
+	$(PY) benchmarks/discovery_latency.py
 
 # Re-execute the notebooks in place so the committed outputs are fresh (maintainers).
 execute: setup

@@ -27,9 +27,14 @@ class KernelSession:
         self.client = self.km.client()
         self.client.start_channels()
         self.client.wait_for_ready(timeout=60)
+        self.displays: dict[str, dict] = {}  # display id -> its latest data (consoles update theirs)
 
     def run(self, code: str, timeout: float = 60, interrupt_after: float | None = None):
-        """Execute a cell; return (outputs, error) where outputs are stream/display texts."""
+        """Execute a cell; return (outputs, error) where outputs are stream/display texts.
+
+        Displays with an ID (node consoles) are also kept in ``displays`` with their latest data,
+        whichever cell was running when they changed.
+        """
         msg_id = self.client.execute(code)
         outputs, error = [], None
         deadline = time.monotonic() + timeout
@@ -44,9 +49,13 @@ class KernelSession:
                 msg = self.client.get_iopub_msg(timeout=0.2)
             except Exception:
                 continue
+            kind, content = msg["msg_type"], msg["content"]
+            if kind in ("display_data", "update_display_data"):
+                display_id = content.get("transient", {}).get("display_id")
+                if display_id:  # a display that later updates (a node console): keep its latest data
+                    self.displays[display_id] = content["data"]
             if msg["parent_header"].get("msg_id") != msg_id:
                 continue
-            kind, content = msg["msg_type"], msg["content"]
             if kind == "stream":
                 outputs.append(content["text"])
             elif kind in ("display_data", "execute_result"):

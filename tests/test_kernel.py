@@ -77,10 +77,14 @@ def test_callback_output_goes_to_the_node_console_not_the_running_cell(kernel):
     kernel.run(SETUP)
     out, error = kernel.run(PRINTER)
     assert error is None, out
-    assert "[console of /printer]" in out  # the node's console is shown under the cell that added it
+    assert out == ""  # the console shows nothing until the node writes something
     out, error = kernel.run("import time; time.sleep(1.0); print('other cell done')")
     assert error is None
     assert out == "other cell done\n"
+    consoles = [data for data in kernel.displays.values() if "console of /printer" in data["text/plain"]]
+    assert len(consoles) == 1, kernel.displays  # under the cell that added the node, updated in place
+    assert "tick from the printer" in consoles[0]["text/plain"]
+    assert "tick from the printer" in consoles[0]["text/html"]
     out, _ = kernel.run("print(rt._router.console_for('printer').text())")
     assert "tick from the printer" in out
     assert "log from the printer" in out and "[INFO]" in out

@@ -1,10 +1,9 @@
 """Route prints, logs and errors from node callbacks to the cell that started the node.
 
-Used by the runtime in every chapter. Inside Jupyter each node gets a small
-console (an ``ipywidgets.Output``) under the cell that added it; callbacks run in
-the runtime's background thread, and whatever they print lands in that console
-instead of whatever cell happens to be running. Outside Jupyter (tests, scripts)
-output goes to the terminal as usual.
+Inside Jupyter each node gets a small console under the cell that added it; callbacks run in
+the runtime's background thread, and whatever they print lands in that console instead of
+whatever cell happens to be running. Outside Jupyter (tests, scripts) output goes to the
+terminal as usual.
 """
 
 from __future__ import annotations
@@ -13,6 +12,8 @@ import sys
 import threading
 import time
 import traceback
+import uuid
+from html import escape as html_escape
 
 MAX_LINES = 200  # lines a console keeps; older lines scroll away
 FLUSH_PERIOD_S = 0.2  # how often consoles are refreshed in the browser
@@ -25,15 +26,16 @@ def in_jupyter_kernel() -> bool:
 
 
 class NodeConsole:
-    """The text console of one node (or child process) shown under the cell that started it."""
+    """The text console of one node, shown under the cell that started it.
 
-    def __init__(self, title: str):
-        import ipywidgets as widgets
+    It is a display with an ID: the lines a node prints or logs replace its content a few times a
+    second, so it is live in JupyterLab, and the saved notebook keeps the last lines as plain text
+    and HTML that any notebook viewer shows. Until the node logs something it shows nothing.
+    """
 
+    def __init__(self, title: str, show: bool = True):
         self.title = title
-        self.widget = widgets.Output(
-            layout=widgets.Layout(max_height="10em", overflow="auto", border="0")
-        )
+        self.display_id = uuid.uuid4().hex if show else None
         self._lines: list[str] = []
         self._partial = ""
         self._dirty = False
@@ -48,19 +50,36 @@ class NodeConsole:
             del self._lines[:-MAX_LINES]
             self._dirty = True
 
+    def empty_bundle(self) -> dict:
+        """What the console shows before its node logs anything: nothing visible."""
+        return {"text/plain": "",
+                "text/html": f"<div class='course-console' data-console='{self._name()}'></div>"}
+
+    def bundle(self, text: str) -> dict:
+        """The console's lines as plain text and HTML (what a saved notebook shows)."""
+        html = (f"<div class='course-console' data-console='{self._name()}'>"
+                f"<small>console of {self._name()}</small>"
+                f"<pre style='max-height:10em;overflow:auto;margin:0'>{html_escape(text)}</pre></div>")
+        return {"text/plain": f"console of {self.title}:\n{text}", "text/html": html}
+
     def flush_to_widget(self) -> None:
-        """Send the buffered lines to the browser if anything changed."""
+        """Show the buffered lines under the node's cell if anything changed."""
         with self._lock:
-            if not self._dirty:
+            if not self._dirty or self.display_id is None:
                 return
             text = "\n".join(self._lines + ([self._partial] if self._partial else []))
             self._dirty = False
-        self.widget.outputs = ({"output_type": "stream", "name": "stdout", "text": text + "\n"},)
+        from IPython.display import update_display
+
+        update_display(self.bundle(text), display_id=self.display_id, raw=True)
 
     def text(self) -> str:
         """Everything the console currently holds."""
         with self._lock:
             return "\n".join(self._lines + ([self._partial] if self._partial else []))
+
+    def _name(self) -> str:
+        return html_escape(self.title, quote=True)
 
 
 class _ThreadRoutedStream:
@@ -125,14 +144,12 @@ class ConsoleRouter:
 
     def open(self, logger_name: str, title: str, show: bool = True) -> NodeConsole:
         """Create (or replace) the console for a logger name and display it in the current cell."""
-        console = NodeConsole(title)
+        console = NodeConsole(title, show)
         self._consoles[logger_name] = console
         if show:
             from IPython.display import display
 
-            bundle = dict(console.widget._repr_mimebundle_())
-            bundle["text/plain"] = f"[console of {title}]"
-            display(bundle, raw=True)
+            display(console.empty_bundle(), raw=True, display_id=console.display_id)
         return console
 
     def close(self, logger_name: str) -> None:

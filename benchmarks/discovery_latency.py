@@ -1,0 +1,221 @@
+"""Benchmark: how fast a node in a new process is discovered, course settings against the defaults.
+
+Run with ``make bench`` or ``.venv/bin/python benchmarks/discovery_latency.py [--runs 20]``.
+
+Three set-ups are measured in the same run, interleaved, each in a ROS domain of its own with
+localhost-only discovery:
+
+* ``course``: an anchor node and fresh probe processes started through the course's process
+  layer (``rt.spawn``), with the course's Fast DDS profile (announcements every 0.1 s);
+* ``fastdds-default``: the same course code, with Fast DDS's default announcement period (3 s);
+* ``plain-rclpy``: an anchor and probes written in plain rclpy (no course code at all), with
+  Fast DDS's defaults: the baseline a student gets from a textbook script.
+
+For every probe, times are counted from the moment its node exists (``Node()`` returned) until
+
+* ``anchor sees new``: the anchor process lists the new node in its graph;
+* ``new sees anchor``: the new process lists the anchor's node;
+* ``sub matched``: the new node's subscription matches the anchor's publisher.
+
+Creating the node (the process's participant) is reported apart: it is start-up, not discovery.
+Prints p50 and p90 per set-up and the ratio against plain rclpy; goal: p90 <= 0.3 s for the course.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+from discovery_targets import PROBE_TIMEOUT_S, BeaconAnchor, probe_procedure
+
+from course_helpers.core import processes
+from course_helpers.core.dds_config import PROFILE_ENV, default_discovery_env
+from course_helpers.core.domains import reserve_domain
+from course_helpers.core.runtime import get_runtime
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+KEYS = ("anchor sees new", "new sees anchor", "sub matched")
+
+
+# ---------------------------------------------------------------------- plain rclpy processes
+PLAIN_ANCHOR = """
+import json, sys, time
+import rclpy
+from rclpy.node import Node
+from std_msgs.msg import String
+rclpy.init()
+node = Node('bench_anchor')
+publisher = node.create_publisher(String, 'bench_beacon', 10)
+seen = set()
+def look():
+    now = time.monotonic()
+    for name, namespace in node.get_node_names_and_namespaces():
+        full = namespace.rstrip('/') + '/' + name
+        if full not in seen:
+            seen.add(full)
+            print(json.dumps({'node': full, 't': now}), flush=True)
+timer = node.create_timer(0.002, look)
+try:
+    rclpy.spin(node)
+except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+    pass
+"""
+
+PLAIN_PROBE = """
+import json, sys, time
+import rclpy
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
+from std_msgs.msg import String
+rclpy.init()
+start = time.monotonic()
+matched = []
+node = Node('bench_probe_' + sys.argv[1])
+events = SubscriptionEventCallbacks(matched=lambda s: matched.append(time.monotonic()))
+node.create_subscription(String, 'bench_beacon', lambda m: None, 10, event_callbacks=events)
+created = time.monotonic()
+seen = None
+while time.monotonic() - created < float(sys.argv[2]) and (seen is None or not matched):
+    rclpy.spin_once(node, timeout_sec=0.002)
+    names = [ns.rstrip('/') + '/' + n for n, ns in node.get_node_names_and_namespaces()]
+    if seen is None and '/bench_anchor' in names:
+        seen = time.monotonic()
+result = {'start': start, 'created': created, 'seen': seen, 'matched': matched[0] if matched else None}
+print(json.dumps(result))
+"""
+
+
+def _plain_env(domain: int) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in (PROFILE_ENV, "COURSE_CHANNEL_FD")}
+    env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    return env
+
+
+# ---------------------------------------------------------------------- the set-ups
+class CourseSetup:
+    """An anchor child and probe children through the course's process layer."""
+
+    def __init__(self, label: str, env: dict):
+        path = os.pathsep.join(p for p in (HERE, os.environ.get("PYTHONPATH")) if p)
+        self.label, self.env = label, {**env, "PYTHONPATH": path}
+        self.key = label.replace("-", "_")  # process labels are node-name-like
+        self.anchor = get_runtime().spawn(f"{self.key}_anchor", BeaconAnchor, env=self.env)
+        self.anchor.wait_for_report("ready", 30)
+
+    def probe(self, index: int) -> dict:
+        rt = get_runtime()
+        child = rt.spawn(f"{self.key}_probe", probe_procedure, params={"index": index}, env=self.env)
+        result = child.wait_for_report("result", PROBE_TIMEOUT_S + 30)
+        child.wait_for_exit(10)
+        name = f"/bench_probe_{index}"
+        seen = [r["t"] for r in self.anchor.reports("seen") if r["node"] == name]
+        return {**result, "anchor_saw": seen[0] if seen else None}
+
+    def stop(self) -> None:
+        get_runtime().stop_child(self.anchor.label)
+
+
+class PlainSetup:
+    """An anchor and probes in plain rclpy, started as ordinary programs."""
+
+    label = "plain-rclpy"
+
+    def __init__(self, domain: int):
+        self.env = _plain_env(domain)
+        self.anchor = subprocess.Popen([sys.executable, "-c", PLAIN_ANCHOR], env=self.env,
+                                       stdout=subprocess.PIPE, text=True)
+        self.seen: dict[str, float] = {}
+
+    def probe(self, index: int) -> dict:
+        out = subprocess.run([sys.executable, "-c", PLAIN_PROBE, str(index), str(PROBE_TIMEOUT_S)],
+                             env=self.env, capture_output=True, text=True, timeout=PROBE_TIMEOUT_S + 30)
+        result = json.loads(out.stdout.strip().splitlines()[-1])
+        name = f"/bench_probe_{index}"
+        deadline = time.monotonic() + 2.0  # the anchor prints what it saw as it sees it
+        while name not in self.seen and time.monotonic() < deadline:
+            line = self.anchor.stdout.readline()
+            entry = json.loads(line)
+            self.seen.setdefault(entry["node"], entry["t"])
+        return {**result, "anchor_saw": self.seen.get(name)}
+
+    def stop(self) -> None:
+        self.anchor.terminate()
+        self.anchor.wait(timeout=10)
+
+
+# ---------------------------------------------------------------------- measuring
+def latencies(result: dict) -> dict:
+    created = result["created"]
+
+    def since(t):
+        return None if t is None else max(0.0, t - created)
+
+    return {"create node": result["created"] - result["start"],
+            "anchor sees new": since(result["anchor_saw"]),
+            "new sees anchor": since(result["seen"]), "sub matched": since(result["matched"])}
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+
+def summarize(rows: list[dict], key: str, timeout: float) -> tuple[float, float, int]:
+    """(p50, p90, misses); a probe that never saw it counts as the timeout."""
+    values = [row[key] if row[key] is not None else timeout for row in rows]
+    misses = sum(row[key] is None for row in rows)
+    return statistics.median(values), percentile(values, 0.9), misses
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--runs", type=int, default=20, help="fresh processes per set-up (default 20)")
+    args = parser.parse_args(argv)
+    if not 1 <= args.runs <= 200:
+        parser.error(f"--runs must be 1..200, got {args.runs}")
+    rt = get_runtime()
+    course_domain, default_domain, plain_domain = (reserve_domain() for _ in range(3))
+    setups = [
+        CourseSetup("course", {"ROS_DOMAIN_ID": course_domain}),
+        CourseSetup("fastdds-default",
+                    {"ROS_DOMAIN_ID": default_domain, **default_discovery_env(rt.log_dir)}),
+        PlainSetup(plain_domain),
+    ]
+    rows: dict[str, list[dict]] = {s.label: [] for s in setups}
+    time.sleep(1.0)  # the anchors are up and announced
+    try:
+        for index in range(args.runs):
+            for setup in setups:  # interleaved: a busy moment hits every set-up alike
+                rows[setup.label].append(latencies(setup.probe(index)))
+            print(f"  run {index + 1}/{args.runs} done", flush=True)
+    finally:
+        for setup in setups:
+            setup.stop()
+    print(f"\nDiscovery of a node in a new process, {args.runs} fresh processes per set-up "
+          "(seconds from the node's creation; p50 / p90):")
+    print(f"{'set-up':<17}{'create node':>16}" + "".join(f"{k:>20}" for k in KEYS))
+    p90 = {}
+    for label, data in rows.items():
+        cells = [f"{statistics.median(r['create node'] for r in data):.3f} / "
+                 f"{percentile([r['create node'] for r in data], 0.9):.3f}"]
+        for key in KEYS:
+            p50, p90_value, misses = summarize(data, key, PROBE_TIMEOUT_S)
+            p90[label, key] = p90_value
+            cells.append(f"{p50:.3f} / {p90_value:.3f}" + (f" ({misses} missed)" if misses else ""))
+        print(f"{label:<17}{cells[0]:>16}" + "".join(f"{c:>20}" for c in cells[1:]))
+    course_worst = max(p90["course", k] for k in KEYS)
+    plain_worst = max(p90["plain-rclpy", k] for k in KEYS)
+    print(f"\ncourse p90 (worst of the three): {course_worst:.3f} s (goal <= 0.3 s: "
+          f"{'met' if course_worst <= 0.3 else 'NOT met'}); plain rclpy p90: {plain_worst:.3f} s; "
+          f"ratio course / plain: {course_worst / plain_worst:.2f}")
+    processes.stop_all()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

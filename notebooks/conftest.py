@@ -1,0 +1,58 @@
+"""Strict nbval of the course, then "Run All" a second time in the same kernel.
+
+``pytest --nbval notebooks/`` runs every code cell and compares its outputs with the committed
+ones (the first pass). This file adds a second pass to each notebook: every cell again, in the same
+kernel, checked only for errors, then a last item that asserts the second run left no duplicate
+nodes and one executor thread. So each notebook runs exactly twice, and re-running a notebook
+(what students do all the time) is tested where the notebook is tested. Set
+``COURSE_NBVAL_RERUN=0`` to run the first pass only.
+"""
+
+from __future__ import annotations
+
+import os
+
+import nbformat
+
+AFTER_RERUN = """
+import collections, threading
+from course_helpers import get_runtime
+_rt = get_runtime()
+_names = [ns.rstrip('/') + '/' + n for n, ns in _rt.graph.get_node_names_and_namespaces()]
+_dupes = sorted(n for n, c in collections.Counter(_names).items() if c > 1)
+_threads = sum(t.name == 'ros-executor' for t in threading.enumerate())
+assert not _dupes and _threads == 1, (
+    f'after running twice: duplicate nodes {_dupes}, {_threads} executor threads')
+"""
+
+
+def pytest_collection_modifyitems(session, config, items):
+    if os.environ.get("COURSE_NBVAL_RERUN", "1") == "0":
+        return
+    from nbval.plugin import IPyNbCell
+
+    ordered, files = [], {}
+    for item in items:
+        if isinstance(item, IPyNbCell):
+            files.setdefault(item.parent, []).append(item)
+        else:
+            ordered.append(item)
+    for notebook, cells in files.items():
+        ordered += cells
+        for cell in cells:
+            options = dict(cell.options)
+            options["check"] = False  # the second run must not fail; its outputs were compared once
+            ordered.append(IPyNbCell.from_parent(notebook, name=f"{cell.name} (run 2)",
+                                                 cell_num=cell.cell_num, cell=cell.cell,
+                                                 options=_defaulting(options)))
+        check = nbformat.v4.new_code_cell(AFTER_RERUN)
+        ordered.append(IPyNbCell.from_parent(notebook, name="after run 2: no duplicates",
+                                             cell_num=len(cells), cell=check,
+                                             options=_defaulting({"check": False})))
+    items[:] = ordered
+
+
+def _defaulting(options: dict):
+    from collections import defaultdict
+
+    return defaultdict(bool, options)
