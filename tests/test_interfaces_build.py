@@ -176,6 +176,16 @@ def test_command_line_reports_the_course_interfaces_up_to_date():
                           cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert "course_interfaces is up to date (no definition changed)" in done.stdout
+    assert "example_interfaces is up to date (no definition changed)" in done.stdout
+
+
+def test_textbook_imports_of_example_interfaces_work():
+    code = ("from example_interfaces.srv import AddTwoInts\nfrom example_interfaces.action import Fibonacci\n"
+            "feedback = Fibonacci.Feedback()\nfeedback.sequence = [0, 1]\n"
+            "print(AddTwoInts.Response(sum=2 + 3).sum, list(feedback.sequence))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["5", "[0,", "1]"]
 
 
 @pytest.mark.slow

@@ -55,7 +55,10 @@ __all__ = [
 ]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-COURSE_INTERFACES_DIR = REPO_ROOT / "interfaces" / "course_interfaces"
+INTERFACES_DIR = REPO_ROOT / "interfaces"
+COURSE_INTERFACES_DIR = INTERFACES_DIR / "course_interfaces"
+# Built by set-up: the course's own package, and a stand-in for example_interfaces (not on PyPI).
+SETUP_PACKAGES = (INTERFACES_DIR / "example_interfaces", COURSE_INTERFACES_DIR)
 
 # Bump when the build recipe changes, so that every installed package is rebuilt.
 RECIPE_VERSION = 1
@@ -423,16 +426,16 @@ def _run_cmake_steps(source: Path, prefix: Path, build: Path, log_path: Path, re
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="python -m course_helpers.core.build_interfaces",
-        description="Build the course's ROS 2 interface package with rosidl and install it.",
+        description="Build the course's ROS 2 interface packages with rosidl and install them.",
     )
     parser.add_argument("--force", action="store_true", help="rebuild from scratch")
     parser.add_argument(
         "--prefix", default=sys.prefix, help="install prefix (default: this venv, %(default)s)"
     )
     parser.add_argument(
-        "--source",
-        default=str(COURSE_INTERFACES_DIR),
-        help="interface package to build (default: %(default)s)",
+        "--source", action="append",
+        help="an interface package to build; repeat for several (default: every package set-up "
+             "builds: interfaces/example_interfaces and interfaces/course_interfaces)",
     )
     parser.add_argument("--build-dir", default=None, help="build directory (default: PREFIX/build/NAME)")
     return parser.parse_args(argv)
@@ -441,20 +444,21 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point; returns the process exit code."""
     args = _parse_args(argv)
-    try:
-        result = build_package(
-            args.source, args.prefix, args.build_dir, force=args.force,
-            progress=lambda line: print(line, flush=True),
-        )  # fmt: skip
-    except MissingToolError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    except InterfaceBuildError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 1
-    if result.rebuilt:
-        print(f"Python module: {result.python_dir / result.package}")
-        print(f"Libraries:     {result.library_dir}")
+    for source in args.source or SETUP_PACKAGES:
+        try:
+            result = build_package(
+                source, args.prefix, args.build_dir, force=args.force,
+                progress=lambda line: print(line, flush=True),
+            )  # fmt: skip
+        except MissingToolError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        except InterfaceBuildError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 1
+        if result.rebuilt:
+            print(f"Python module: {result.python_dir / result.package}")
+            print(f"Libraries:     {result.library_dir}")
     return 0
 
 

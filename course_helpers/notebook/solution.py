@@ -1,0 +1,64 @@
+"""The reference solution of an exercise, behind an explicit "show the solution" button.
+
+``show_solution('ch03_topics', 'TiltWarning')`` displays a button; pressing it loads the source
+of ``course_helpers.solutions.ch03_topics.TiltWarning`` and shows it. Nothing of the solution is in
+the saved notebook, so a reader (or a student) sees it only by asking. The solutions are looked up
+by name when the button is pressed: the notebook layer does not depend on ``solutions/``, which
+a student release of the course leaves out (the button then says so).
+"""
+
+from __future__ import annotations
+
+import html
+import importlib
+import inspect
+
+from course_helpers.core.errors import CourseError
+
+PACKAGE = "course_helpers.solutions"
+
+
+def solution_source(module: str, name: str) -> str:
+    """The source code of the reference solution ``name`` in ``solutions/<module>.py``.
+
+    Raises :class:`CourseError` if this copy of the course has no such solution.
+    """
+    if not module.isidentifier() or not all(part.isidentifier() for part in name.split(".")):
+        raise CourseError(f"name a solution like show_solution('ch03_topics', 'TiltWarning'), "
+                          f"got {module!r}, {name!r}")
+    try:
+        obj = importlib.import_module(f"{PACKAGE}.{module}")
+    except ModuleNotFoundError:
+        raise CourseError("the reference solutions are not part of this copy of the course "
+                          "(a student release leaves them out); ask your instructor") from None
+    for part in name.split("."):
+        if not hasattr(obj, part):
+            raise CourseError(f"solutions/{module}.py has no {name!r}")
+        obj = getattr(obj, part)
+    return inspect.getsource(obj)
+
+
+def show_solution(module: str, name: str, label: str = "Show the reference solution"):
+    """Display a button that reveals the reference solution ``name`` of ``solutions/<module>.py``."""
+    import ipywidgets as w
+    from IPython.display import display
+
+    button = w.Button(description=label, icon="eye", layout=w.Layout(width="auto"))
+    shown = w.HTML()
+
+    def reveal(_button) -> None:
+        try:
+            code = solution_source(module, name)
+        except CourseError as exc:
+            shown.value = f"<p><i>{html.escape(str(exc))}</i></p>"
+            return
+        shown.value = f"<pre>{html.escape(code)}</pre>"
+        button.disabled = True
+
+    button.on_click(reveal)
+    box = w.VBox([button, shown])
+    bundle = {k: v for k, v in box._repr_mimebundle_().items() if "widget-view" in k}
+    note = "Run the notebook and press the button to see the reference solution."
+    bundle.update({"text/plain": note, "text/html": f"<p><i>{note}</i></p>"})
+    display(bundle, raw=True)
+    return box
