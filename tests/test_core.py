@@ -158,3 +158,11 @@ def test_waiting_names_what_it_waited_for():
     assert poll_until(lambda: False, 0.05) is False
     with pytest.raises(WaitTimeout, match="waiting for the moon"):
         wait_until(lambda: False, 0.05, "the moon")
+
+
+@pytest.mark.parametrize("name", ["/odom//filtered", "odom//filtered", "2fast", "/bad name"])
+def test_invalid_topic_names_are_named(name):
+    from course_helpers.core.validation import check_topic_name
+
+    with pytest.raises(CourseError, match=f"invalid topic name {name!r}"):
+        check_topic_name(name)

@@ -14,6 +14,7 @@ from rclpy.exceptions import (
     InvalidNodeNameException,
     InvalidTopicNameException,
 )
+from rclpy.validate_full_topic_name import validate_full_topic_name
 from rclpy.validate_namespace import validate_namespace
 from rclpy.validate_node_name import validate_node_name
 from rclpy.validate_topic_name import validate_topic_name
@@ -59,11 +60,13 @@ def check_topic_name(name: str) -> str:
         raise CourseError(f"topic name must be a non-empty string, got {name!r}")
     try:
         validate_topic_name(name)
+        if not name.startswith("~"):  # the full name it becomes must be valid too (no '//')
+            validate_full_topic_name(name if name.startswith("/") else "/" + name)
     except InvalidTopicNameException as exc:
         raise CourseError(
             f"invalid topic name {name!r}: {_reason(exc)}. Topic names look like "
             "'chatter', '/robot1/cmd_vel' or '~/status': tokens of letters, digits and "
-            "underscores separated by '/', not starting with a digit."
+            "underscores separated by single '/', not starting with a digit."
         ) from None
     return name
 
