@@ -15,18 +15,21 @@ ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks lint bench execute clean
+.PHONY: setup lab test unit notebooks lint bench execute book clean
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
 	@$(PY) -m course_helpers.core.build_interfaces
 
-$(STAMP): environment.txt pyproject.toml
+$(STAMP): environment.txt pyproject.toml tools/jupyterlab/overrides.json
 	@$(PYTHON) tools/check_platform.py
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r environment.txt
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	@# JupyterLab settings for the course: no "news" pop-up, no update check
+	@mkdir -p $(VENV)/share/jupyter/lab/settings
+	@cp tools/jupyterlab/overrides.json $(VENV)/share/jupyter/lab/settings/overrides.json
 	@touch $(STAMP)
 
 lab: setup
@@ -44,7 +47,7 @@ notebooks: setup
 	$(PY) -m pytest $(NBVAL) -n $(JOBS) --dist loadfile notebooks -q
 
 lint: setup
-	$(VENV)/bin/ruff check course_helpers tests benchmarks tools notebooks
+	$(VENV)/bin/ruff check course_helpers tests benchmarks tools notebooks book
 
 bench: setup
 	$(PY) benchmarks/executor_throughput.py
@@ -53,6 +56,10 @@ bench: setup
 # Re-execute the notebooks in place so the committed outputs are fresh (maintainers).
 execute: setup
 	$(PY) tools/execute_notebooks.py notebooks/*.ipynb
+
+# The course website from the committed notebooks (nothing executed, nothing downloaded).
+book: setup
+	$(PY) tools/build_book.py
 
 clean:
 	rm -rf $(VENV) build install log tests/artifacts

@@ -1,0 +1,126 @@
+"""The course website (``make book``) in a real browser: every chapter, its images and its links.
+
+Builds the site from the committed notebooks, serves it from a local HTTP server, and visits the
+landing page and every chapter in headless Debian Chromium driven by Playwright. Each page must
+have its title, every image must have loaded (natural width > 0), and every internal link must
+answer. Screenshots of the landing page, 08b and 10 go to ``tests/artifacts/``. Skipped when
+Chromium is missing (Playwright never downloads a browser here).
+"""
+
+from __future__ import annotations
+
+import glob
+import http.server
+import json
+import os
+import subprocess
+import sys
+import threading
+import urllib.error
+import urllib.parse
+import urllib.request
+from functools import partial
+
+import pytest
+
+from .conftest import REPO
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.xdist_group("book")]
+
+SITE = os.path.join(REPO, "build", "book", "html")
+ARTIFACTS = os.path.join(REPO, "tests", "artifacts")
+CHROMIUM = os.environ.get("COURSE_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+CHAPTERS = sorted(os.path.splitext(os.path.basename(p))[0]
+                  for p in glob.glob(os.path.join(REPO, "notebooks", "*.ipynb")))
+SCREENSHOTS = {"index": "book_landing.png", "08b_qos_lab": "book_08b_qos_lab.png",
+               "10_capstone": "book_10_capstone.png"}
+
+
+def _title_of(chapter: str) -> str:
+    with open(os.path.join(REPO, "notebooks", f"{chapter}.ipynb"), encoding="utf-8") as handle:
+        cells = json.load(handle)["cells"]
+    heading = "".join(next(c for c in cells if c["cell_type"] == "markdown")["source"]).splitlines()[0]
+    return heading.lstrip("# ").strip()
+
+
+class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *_args):
+        pass
+
+
+@pytest.fixture(scope="module")
+def site():
+    """The freshly built site served on a free localhost port: yields its base URL."""
+    if not os.path.exists(CHROMIUM):
+        pytest.skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) or "
+                    "set COURSE_CHROMIUM to an installed Chromium-based browser; Playwright must not "
+                    "download one")
+    pytest.importorskip("playwright.sync_api", reason="playwright (PyPI) is not installed")
+    build = subprocess.run([sys.executable, os.path.join(REPO, "tools", "build_book.py")], cwd=REPO,
+                           capture_output=True, text=True, timeout=600)
+    assert build.returncode == 0, build.stdout + build.stderr
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), partial(_QuietHandler, directory=SITE))
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def _answers(url: str) -> bool:
+    try:
+        with urllib.request.urlopen(url, timeout=10) as response:
+            return response.status == 200
+    except urllib.error.URLError:
+        return False
+
+
+def test_every_chapter_page_has_its_title_images_and_working_links(site):
+    from playwright.sync_api import sync_playwright
+
+    os.makedirs(ARTIFACTS, exist_ok=True)
+    problems, checked_links = [], set()
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 900})
+            for name in ["index", *CHAPTERS]:
+                url = f"{site}/{name}.html"
+                response = page.goto(url, wait_until="load")
+                if response is None or response.status != 200:
+                    problems.append(f"{name}: HTTP {response and response.status}")
+                    continue
+                heading = page.locator("main h1").first.inner_text().replace("#", "").strip()
+                expected = "ROS 2 architecture, live" if name == "index" else _title_of(name)
+                if heading != expected:
+                    problems.append(f"{name}: title {heading!r}, expected {expected!r}")
+                images = page.eval_on_selector_all(
+                    "main img", "imgs => imgs.map(i => [i.currentSrc.slice(0, 60), i.naturalWidth])")
+                problems += [f"{name}: image {src!r} did not load" for src, width in images if width == 0]
+                if name != "index" and not images:
+                    problems.append(f"{name}: no images at all")
+                links = page.eval_on_selector_all("a[href]", "links => links.map(a => a.href)")
+                for link in links:
+                    target = urllib.parse.urldefrag(link).url
+                    if target.startswith(site) and target not in checked_links:
+                        checked_links.add(target)
+                        if not _answers(target):
+                            problems.append(f"{name}: broken link {target}")
+                if name in SCREENSHOTS:
+                    page.screenshot(path=os.path.join(ARTIFACTS, SCREENSHOTS[name]), full_page=False)
+        finally:
+            browser.close()
+    assert not problems, "\n".join(problems)
+    assert len(checked_links) > len(CHAPTERS)  # the navigation links every chapter
+
+
+def test_the_site_shows_static_records_not_widget_reprs(site):
+    for name in CHAPTERS:
+        with open(os.path.join(SITE, f"{name}.html"), encoding="utf-8") as handle:
+            text = handle.read()
+        for bare in ("HBox(children", "VBox(children", "[console of", "FloatProgress(value"):
+            assert bare not in text, f"{name}.html shows a widget's bare repr {bare!r}"
