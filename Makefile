@@ -15,7 +15,7 @@ ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks lint bench execute book clean
+.PHONY: setup lab test unit notebooks lint bench execute book test-pythons clean
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -56,6 +56,10 @@ bench: setup
 # Re-execute the notebooks in place so the committed outputs are fresh (maintainers).
 execute: setup
 	$(PY) tools/execute_notebooks.py notebooks/*.ipynb
+
+# Set-up and strict nbval from a fresh clone on every Python 3.10-3.13 found (PYTHON310=... or PATH).
+test-pythons:
+	$(PYTHON) tools/test_pythons.py
 
 # The course website from the committed notebooks (nothing executed, nothing downloaded).
 book: setup

@@ -5,7 +5,8 @@ ones (the first pass). This file adds a second pass to each notebook: every cell
 kernel, checked only for errors, then a last item that asserts the second run left no duplicate
 nodes and one executor thread. So each notebook runs exactly twice, and re-running a notebook
 (what students do all the time) is tested where the notebook is tested. Set
-``COURSE_NBVAL_RERUN=0`` to run the first pass only.
+``COURSE_NBVAL_RERUN=0`` to run the first pass only. Every cell of a notebook is in one
+pytest-xdist group, so ``--dist loadgroup`` (or ``loadfile``) keeps a notebook on one worker.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import os
 
 import nbformat
+import pytest
 
 AFTER_RERUN = """
 import collections, threading
@@ -49,6 +51,9 @@ def pytest_collection_modifyitems(session, config, items):
         ordered.append(IPyNbCell.from_parent(notebook, name="after run 2: no duplicates",
                                              cell_num=len(cells), cell=check,
                                              options=_defaulting({"check": False})))
+    for item in ordered:
+        if isinstance(item, IPyNbCell):
+            item.add_marker(pytest.mark.xdist_group(f"notebook-{item.parent.name}"))
     items[:] = ordered
 
 
