@@ -62,3 +62,42 @@ def show_solution(module: str, name: str, label: str = "Show the reference solut
     bundle.update({"text/plain": note, "text/html": f"<p><i>{note}</i></p>"})
     display(bundle, raw=True)
     return box
+
+
+def show_passing_report(check, module: str, name: str):
+    """Show, collapsed, what a passing checker report looks like, without showing the solution code.
+
+    ``check`` is called with the reference solution ``name`` of ``solutions/<module>.py`` (for
+    example ``check_tilt_warning``, or ``lambda cls: check_x(cls, rt)``) and must return a
+    ``CheckReport``. The report is real: the checker runs the reference against real nodes just now.
+    Displayed inside a closed ``<details>`` element, so a student opens it only when they want to.
+    Returns the report, or None when this copy of the course has no solutions (a student release).
+    """
+    from IPython.display import display
+
+    try:
+        solution = _solution_object(module, name)
+    except CourseError as exc:
+        note = f"(A passing report is not available here: {exc}.)"
+        display({"text/plain": note, "text/html": f"<p><i>{html.escape(note)}</i></p>"}, raw=True)
+        return None
+    report = check(solution)
+    if not hasattr(report, "summary"):
+        raise CourseError("show_passing_report: the check must return a CheckReport, "
+                          f"got {type(report).__name__}")
+    title = f"what passing looks like: {report.exercise}"
+    body = (f"<details><summary>{html.escape(title.capitalize())} (the reference solution, checked "
+            f"against real nodes; its code stays hidden)</summary>{report._repr_html_()}</details>")
+    display({"text/plain": f"[record] {title}\n{report.summary()}",
+             "text/html": f"<div class='course-record' data-record='{html.escape(title, quote=True)}'>"
+                          f"{body}</div>"}, raw=True)
+    return report
+
+
+def _solution_object(module: str, name: str):
+    """The object ``name`` of ``solutions/<module>.py`` (a CourseError says why it is missing)."""
+    solution_source(module, name)  # validates the names and says why a solution is missing
+    obj = importlib.import_module(f"{PACKAGE}.{module}")
+    for part in name.split("."):
+        obj = getattr(obj, part)
+    return obj

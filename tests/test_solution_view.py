@@ -1,0 +1,34 @@
+"""The notebook layer's view of reference solutions: shown only on request, passing reports real."""
+
+from __future__ import annotations
+
+import pytest
+
+from course_helpers import CourseError
+from course_helpers.checks.ch04_services import check_battery_server
+from course_helpers.notebook.solution import show_passing_report, solution_source
+
+
+def test_solution_source_is_the_reference_code_and_bad_names_say_what_is_allowed():
+    code = solution_source("ch04_services", "BatteryMonitor")
+    assert code.startswith("class BatteryMonitor(")
+    with pytest.raises(CourseError, match="has no 'Nope'"):
+        solution_source("ch04_services", "Nope")
+    with pytest.raises(CourseError, match="name a solution like"):
+        solution_source("ch04 services", "BatteryMonitor")
+    with pytest.raises(CourseError, match="not part of this copy"):
+        solution_source("ch99_missing", "Anything")
+
+
+def test_the_passing_report_runs_the_reference_against_real_nodes(rt, capsys):
+    report = show_passing_report(lambda cls: check_battery_server(cls, rt), "ch04_services", "BatteryMonitor")
+    assert report is not None and report.passed, report.summary()
+    shown = capsys.readouterr().out
+    # outside a kernel IPython prints the text form: a record of the real report, no solution code
+    assert "what passing looks like" in shown and "PASSED" in shown
+    assert "class BatteryMonitor" not in shown
+
+
+def test_without_solutions_the_passing_report_says_why(capsys):
+    assert show_passing_report(lambda cls: None, "ch99_missing", "Anything") is None
+    assert "not available here" in capsys.readouterr().out
