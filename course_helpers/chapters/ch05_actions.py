@@ -4,7 +4,8 @@
   execute callback): it lets the single executor thread run other callbacks
   meanwhile, where ``time.sleep`` would freeze every node of the kernel.
 * :class:`FeedbackProgress` is a progress bar (ipywidgets) driven by an action
-  client's feedback callback, which also keeps the values it saw.
+  client's feedback callback, which also keeps the values it saw; in a notebook it
+  leaves a static record of how the goal ended.
 * :func:`action_parts` lists, from the live graph, the hidden topics and services
   an action is made of (``<action>/_action/feedback``, ``.../status``,
   ``.../send_goal``, ``.../cancel_goal``, ``.../get_result``).
@@ -12,6 +13,7 @@
 
 from __future__ import annotations
 
+import html
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -66,7 +68,9 @@ class FeedbackProgress:
     ``value_of(feedback)`` turns one feedback message (the ``.feedback`` field of
     what the client receives) into a number from 0 to ``maximum``. Every value is
     kept in ``values``; :meth:`follow` colours the bar when the goal ends (green
-    succeeded, orange canceled, red aborted).
+    succeeded, orange canceled, red aborted). Displayed in a notebook, the bar comes
+    with a static record (``notebook.records``) that :meth:`follow` fills in with the
+    outcome, so a saved notebook shows how the goal ended, not an empty bar.
     """
 
     def __init__(self, maximum: float, value_of: Callable, description: str = "progress"):
@@ -79,8 +83,11 @@ class FeedbackProgress:
 
         self.maximum = maximum
         self.value_of = value_of
+        self.description = description
         self.values: list[float] = []
         self.status: str | None = None
+        self.outcome_text = ""
+        self.record = None  # the static record, once the bar is displayed
         self.bar = widgets.FloatProgress(value=0.0, min=0.0, max=float(maximum), description=description,
                                          style={"description_width": "initial"})
         self.label = widgets.Label(value=f"0 / {maximum:g}")
@@ -93,15 +100,39 @@ class FeedbackProgress:
         self.bar.value = min(max(value, 0.0), float(self.maximum))
         self.label.value = f"{value:g} / {self.maximum:g}"
 
-    def follow(self, goal_handle) -> None:
-        """Colour the bar and show the final status when the goal's result arrives."""
+    def follow(self, goal_handle, describe: Callable | None = None) -> None:
+        """Colour the bar and show the final status when the goal's result arrives.
+
+        ``describe(result)`` (optional) turns the result message into a few words for the
+        record, e.g. ``lambda result: f'{len(result.sequence)} terms'``.
+        """
         def finished(future):
-            result = future.result()
-            self.status = status_name(result.status) if result is not None else "UNKNOWN"
+            outcome = future.result()
+            self.status = status_name(outcome.status) if outcome is not None else "UNKNOWN"
             self.bar.bar_style = {"SUCCEEDED": "success", "CANCELED": "warning"}.get(self.status, "danger")
             self.label.value = f"{self.label.value}  {self.status}"
+            if describe is not None and outcome is not None:
+                self.outcome_text = str(describe(outcome.result))
+            self._update_record()
 
         goal_handle.get_result_async().add_done_callback(finished)
+
+    def summary(self) -> str:
+        """One line: the goal's outcome so far, e.g. 'Fibonacci(15): 16 terms, SUCCEEDED after
+        14 feedback messages (last value 15 of 15)'."""
+        what = f"{self.outcome_text}, " if self.outcome_text else ""
+        state = self.status or "running"
+        last = f" (last value {self.values[-1]:g} of {self.maximum:g})" if self.values else ""
+        return f"{self.description}: {what}{state} after {len(self.values)} feedback messages{last}"
+
+    def _record_html(self) -> str:
+        value = min(max(self.values[-1], 0.0), float(self.maximum)) if self.values else 0.0
+        return (f"<progress value='{value:g}' max='{self.maximum:g}'></progress> "
+                f"<code>{html.escape(self.summary())}</code>")
+
+    def _update_record(self) -> None:
+        if self.record is not None:
+            self.record.update(self.summary(), self._record_html())
 
     @property
     def monotonic(self) -> bool:
@@ -109,9 +140,9 @@ class FeedbackProgress:
         return all(a <= b for a, b in zip(self.values, self.values[1:], strict=False))
 
     def _ipython_display_(self):
-        from IPython.display import display
+        from course_helpers.notebook.records import show_with_record
 
-        display(self.widget)
+        self.record = show_with_record(self.widget, self.description, self.summary(), self._record_html())
 
 
 @dataclass(frozen=True)
