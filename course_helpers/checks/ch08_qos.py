@@ -6,13 +6,16 @@
   e-stop was pressed.
 * :func:`check_mismatched_subscriber` runs the student's node against a best-effort publisher in
   another process and checks that messages arrive.
+* :func:`check_deadline_watchdog` runs the student's watchdog against an odometry driver in another
+  process that falls silent for a while, and listens for its alarms.
+* :func:`check_heartbeat` commands the student's MANUAL_BY_TOPIC heartbeat to stop and start, and
+  runs the student's monitor against a heartbeat in another process that stops asserting.
 """
 
 from __future__ import annotations
 
 import time
 
-from rclpy.node import Node
 from rclpy.qos import (
     QoSDurabilityPolicy,
     QoSHistoryPolicy,
@@ -22,61 +25,24 @@ from rclpy.qos import (
 )
 from sensor_msgs.msg import Image
 
-from course_helpers.chapters.ch08_qos import ROBOT_CMD_QOS, RobotCmdPublisher, explain_compatibility, try_pair
-from course_helpers.checks import CheckReport
+from course_helpers.chapters.ch08_qos import explain_compatibility, try_pair
+from course_helpers.chapters.ch08_qos.exercise import (
+    CONSUMER_WORK_S,
+    HEARTBEAT_QOS,
+    ODOM_QOS,
+    ROBOT_CMD_QOS,
+    CameraDriver,
+    OdomSensor,
+    RobotCmdPublisher,
+    ScheduledHeartbeat,
+    SlowConsumer,
+)
+from course_helpers.checks import CheckReport, student_node
 from course_helpers.core.qos_dict import qos_from_dict, qos_to_dict
 from course_helpers.core.waiting import poll_until
 
 CHANNELS = ("camera", "lidar", "joint_states", "estop")
-CAMERA_RATE_HZ = 30.0
-CONSUMER_WORK_S = 0.15  # the perception node's processing time per frame
 MAX_FRAME_AGE_S = 0.25
-
-
-# ====================================================================== nodes
-class CameraDriver(Node):
-    """Publishes mono8 images of ``width`` x ``height`` at ``rate_hz``, stamped with the time they were
-    taken, on camera/image_raw with the QoS given as a dict (a child-process target)."""
-
-    def __init__(self, qos: dict, rate_hz: float = CAMERA_RATE_HZ, width: int = 640, height: int = 480):
-        super().__init__("camera_driver")
-        self.publisher = self.create_publisher(Image, "camera/image_raw", qos_from_dict(qos))
-        self.frame = Image(height=height, width=width, encoding="mono8", step=width,
-                           data=bytes(width * height))
-        self.timer = self.create_timer(1.0 / rate_hz, self.capture)  # period in seconds
-
-    def capture(self) -> None:
-        self.frame.header.stamp = self.get_clock().now().to_msg()
-        self.publisher.publish(self.frame)
-
-
-class SlowConsumer(Node):
-    """Takes :data:`CONSUMER_WORK_S` per camera frame and notes each frame's age when work starts.
-
-    Ages (seconds from the frame's stamp) are kept in :attr:`ages` once ``warm_up`` seconds have
-    passed since the first frame (the queue fills up meanwhile).
-    """
-
-    def __init__(self, qos: QoSProfile, warm_up: float):
-        super().__init__("perception")
-        self.warm_up = warm_up
-        self.first_frame_at: float | None = None  # time.monotonic()
-        self.ages: list[float] = []
-        self.subscription = self.create_subscription(Image, "camera/image_raw", self.work, qos)
-
-    def work(self, frame: Image) -> None:
-        now = self.get_clock().now()
-        if self.first_frame_at is None:
-            self.first_frame_at = time.monotonic()
-        if time.monotonic() - self.first_frame_at > self.warm_up:
-            stamp_ns = frame.header.stamp.sec * 10**9 + frame.header.stamp.nanosec
-            self.ages.append((now.nanoseconds - stamp_ns) / 1e9)
-        time.sleep(CONSUMER_WORK_S)  # stands for the perception work; blocks like real work would
-
-    def watched_for(self, seconds: float) -> bool:
-        """True once ``warm_up`` + ``seconds`` have passed since the first frame."""
-        started = self.first_frame_at
-        return started is not None and time.monotonic() - started >= self.warm_up + seconds
 
 
 # ====================================================================== helpers
@@ -85,6 +51,12 @@ def _live_pair(rt, msg_type, topic, pub_qos, sub_qos, make_msg, published_before
     pair = try_pair(rt, pub_qos, sub_qos, topic=topic, msg_type=msg_type, make_message=make_msg,
                     published_before=published_before)
     return pair.received, pair.subscription_events
+
+
+def _mismatches(offered: dict, requested: QoSProfile) -> str:
+    """'' if ``requested`` is compatible with the ``offered`` QoS dict, else which policies are not."""
+    wrong = [v for v in explain_compatibility(qos_from_dict(offered), requested) if v.compatible is False]
+    return "; ".join(f"{v.policy}: offered {v.publisher}, you request {v.subscription}" for v in wrong)
 
 
 def _profile_problem(profile) -> str:
@@ -277,3 +249,230 @@ def check_mismatched_subscriber(node_class, rt=None) -> CheckReport:
             rt.remove(node)
         rt.stop_child("robot_controller")
     return report
+
+
+# ====================================================================== exercise 08.3
+WATCHDOG_DEADLINE_S = (0.2, 1.0)  # the deadlines a watchdog of 10 Hz odometry may request
+ALARM_MARGIN_S = 1.0  # s an alarm may come later than the requested deadline (a loaded machine)
+AFTER_RESUME_S = 1.5  # s watched after the driver speaks again
+
+
+def _endpoints(entities, topic: str, msg_type) -> tuple[list, str]:
+    """The publishers or subscriptions of ``entities`` on ``topic``, and what is wrong ('' if fine)."""
+    found = [e for e in entities if e.topic_name == topic]
+    if not found:
+        return [], f"none on {topic}"
+    if found[0].msg_type is not msg_type:
+        return [], f"its type is {found[0].msg_type.__name__}, not {msg_type.__name__}"
+    return found, ""
+
+
+def _run_quiet_spell(rt, label: str, target, params: dict, after_s: float) -> dict[str, float] | str:
+    """Spawn ``target`` (a node with a QuietSpell), wait until it spoke again plus ``after_s``.
+
+    Returns the monotonic times of its 'start', 'quiet' and 'resume' reports, or what went wrong.
+    """
+    child = rt.spawn(label, target, params=params, wait_for=f"/{label}")
+    try:
+        if not poll_until(lambda: child.last("resume") is not None, 20.0):
+            return "the driver never matched your subscription" if child.last("start") is None else \
+                "the driver's run did not finish in time"
+        times = {tag: child.channel.stamped(tag)[0][0] for tag in ("start", "quiet", "resume")}
+        time.sleep(max(0.0, times["resume"] + after_s - time.monotonic()))  # the last phase runs
+    finally:
+        rt.stop_child(label)
+    times["end"] = times["resume"] + after_s
+    return times
+
+
+def check_deadline_watchdog(node_class, rt=None) -> CheckReport:
+    """Check a watchdog node class: its /odom subscription requests a deadline, and it publishes a
+    String on /alarm when the requested deadline is missed (and only then).
+
+    An odometry driver in a child process publishes at 10 Hz, falls silent for 1.6 s, then speaks
+    again. ``rt`` is the runtime (the kernel's by default). Returns a :class:`CheckReport`.
+    """
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import String
+
+    from course_helpers.core.qos_dict import duration_seconds
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 08.3 - a deadline watchdog for /odom")
+    with student_node(report, rt, node_class, "watchdog_probe") as (node, probe):
+        if node is None:
+            return report
+        subs, problem = _endpoints(node.subscriptions, "/odom", Odometry)
+        if not report.add("it subscribes to /odom (nav_msgs/msg/Odometry)", not problem, problem,
+                          hint="self.create_subscription(Odometry, 'odom', self.on_odom, qos)"):
+            return report
+        deadline_s = duration_seconds(subs[0].qos_profile.deadline)
+        low, high = WATCHDOG_DEADLINE_S
+        if not report.add(f"the subscription requests a deadline ({low:g} s to {high:g} s)",
+                          low <= deadline_s <= high,
+                          f"it requests {deadline_s:g} s" if deadline_s else "it requests no deadline",
+                          hint="QoSProfile(depth=10, deadline=Duration(seconds=0.5)): DDS then tells you "
+                               "when no odometry came for 0.5 s; no timer of your own is needed."):
+            return report
+        wrong = _mismatches(ODOM_QOS, subs[0].qos_profile)
+        if not report.add("its QoS is compatible with the odometry driver (reliable, deadline 0.2 s)",
+                          not wrong, wrong,
+                          hint="A subscription cannot request a shorter deadline than the publisher offers."):
+            return report
+        _pubs, problem = _endpoints(node.publishers, "/alarm", String)
+        if not report.add("it publishes on /alarm (std_msgs/msg/String)", not problem, problem,
+                          hint="self.alarm = self.create_publisher(String, 'alarm', 10)"):
+            return report
+        alarms: list[float] = []  # time.monotonic() of each alarm
+        probe.create_subscription(String, "/alarm", lambda _m: alarms.append(time.monotonic()),
+                                  QoSProfile(depth=100, reliability=QoSReliabilityPolicy.BEST_EFFORT))
+        times = _run_quiet_spell(rt, "odom_driver", OdomSensor, {"speak_s": 1.0, "quiet_s": 1.6},
+                                 AFTER_RESUME_S)
+        if not report.add("the odometry driver runs against it", isinstance(times, dict),
+                          "" if isinstance(times, dict) else times):
+            return report
+        _judge_alarms([t for t in alarms if t <= times["end"]], times, deadline_s, report)
+    return report
+
+
+def _judge_alarms(alarms: list[float], times: dict[str, float], deadline_s: float, report) -> None:
+    early = [t for t in alarms if t < times["quiet"]]
+    report.add("no alarm while odometry arrives every 0.1 s", not early,
+               f"{len(early)} alarm(s)" if early else "",
+               hint="Publish the alarm from the deadline event callback, not from the message callback.")
+    late = [t - times["quiet"] for t in alarms if t >= times["quiet"]]
+    limit = deadline_s + ALARM_MARGIN_S
+    report.add(f"an alarm within {limit:g} s after the odometry stopped", bool(late) and late[0] <= limit,
+               f"the first came after {late[0]:.2f} s" if late else "no alarm arrived",
+               hint="event_callbacks=SubscriptionEventCallbacks(deadline=self.on_deadline_missed), and "
+                    "publish a String on /alarm in that callback.")
+    stale = [t for t in alarms if times["resume"] + 0.5 < t]
+    report.add("no alarm once odometry flows again", not stale,
+               f"{len(stale)} alarm(s) after it resumed" if stale else "",
+               hint="Alarm only when DDS reports a missed deadline.")
+
+
+# ====================================================================== exercise 08.4
+HEARTBEAT_MAX_LEASE_S = 1.0
+LOST_MARGIN_S = 1.5  # s beyond the lease that a loaded machine may take to notice a silent writer
+
+
+def check_heartbeat(heartbeat_class, monitor_class, rt=None) -> CheckReport:
+    """Check a MANUAL_BY_TOPIC heartbeat node class and a liveliness monitor node class.
+
+    The heartbeat must assert liveliness on /heartbeat, stop when a std_msgs/Bool False arrives on
+    /heartbeat/enable and start again on True. The monitor runs against a heartbeat in a child
+    process that stops asserting for 1.5 s, and must publish 'lost' and then 'alive' on
+    /heartbeat/status. ``rt`` is the runtime (the kernel's by default). Returns a :class:`CheckReport`.
+    """
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 08.4 - a MANUAL_BY_TOPIC heartbeat and its monitor")
+    _check_heartbeat_node(rt, report, heartbeat_class)
+    _check_monitor_node(rt, report, monitor_class)
+    return report
+
+
+def _check_heartbeat_node(rt, report, node_class) -> None:
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.qos import QoSLivelinessPolicy
+    from std_msgs.msg import Bool, String
+
+    from course_helpers.core.qos_dict import duration_seconds
+
+    with student_node(report, rt, node_class, "heartbeat_probe") as (node, probe):
+        if node is None:
+            return
+        pubs, problem = _endpoints(node.publishers, "/heartbeat", String)
+        if not report.add("heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)", not problem,
+                          problem, hint="self.publisher = self.create_publisher(String, 'heartbeat', qos)"):
+            return
+        offered = pubs[0].qos_profile
+        lease = duration_seconds(offered.liveliness_lease_duration)
+        manual = offered.liveliness == QoSLivelinessPolicy.MANUAL_BY_TOPIC
+        if not report.add(f"heartbeat: MANUAL_BY_TOPIC with a lease of at most {HEARTBEAT_MAX_LEASE_S:g} s",
+                          manual and 0 < lease <= HEARTBEAT_MAX_LEASE_S,
+                          f"it offers {_name(offered.liveliness)}, lease "
+                          f"{f'{lease:g} s' if lease else 'infinite'}",
+                          hint="liveliness=LivelinessPolicy.MANUAL_BY_TOPIC, "
+                               "liveliness_lease_duration=Duration(seconds=0.5)"):
+            return
+        _subs, problem = _endpoints(node.subscriptions, "/heartbeat/enable", Bool)
+        if not report.add("heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)", not problem,
+                          problem,
+                          hint="self.create_subscription(Bool, 'heartbeat/enable', self.on_enable, 10)"):
+            return
+        seen = {"alive": 0}
+        probe.create_subscription(
+            String, "/heartbeat", lambda _m: None,
+            qos_from_dict({"depth": 1, "liveliness": "manual_by_topic", "lease_s": HEARTBEAT_MAX_LEASE_S}),
+            event_callbacks=SubscriptionEventCallbacks(liveliness=lambda s: seen.update(alive=s.alive_count)))
+        enable = probe.create_publisher(Bool, "/heartbeat/enable", 10)
+        hint = "A timer that calls self.publisher.assert_liveliness() well within every lease."
+        if not report.add("heartbeat: a monitor sees it alive", poll_until(lambda: seen["alive"] == 1, 5.0),
+                          hint=hint):
+            return
+        time.sleep(2 * lease)  # two leases: a one-off assertion would have run out
+        if not report.add("heartbeat: still alive two leases later", seen["alive"] == 1, hint=hint):
+            return
+        poll_until(lambda: enable.get_subscription_count() > 0, 3.0)
+        enable.publish(Bool(data=False))
+        report.add(f"heartbeat: lost within {lease + LOST_MARGIN_S:g} s of a False on /heartbeat/enable",
+                   poll_until(lambda: seen["alive"] == 0, lease + LOST_MARGIN_S),
+                   hint="On False, stop calling assert_liveliness() (and publish nothing on /heartbeat).")
+        enable.publish(Bool(data=True))
+        report.add("heartbeat: alive again after a True", poll_until(lambda: seen["alive"] == 1, 3.0),
+                   hint="On True, assert again.")
+
+
+def _check_monitor_node(rt, report, node_class) -> None:
+    from std_msgs.msg import String
+
+    with student_node(report, rt, node_class, "heartbeat_status_probe") as (node, probe):
+        if node is None:
+            return
+        subs, problem = _endpoints(node.subscriptions, "/heartbeat", String)
+        if not report.add("monitor: it subscribes to /heartbeat (std_msgs/msg/String)", not problem, problem,
+                          hint="self.create_subscription(String, 'heartbeat', self.on_beat, qos, "
+                               "event_callbacks=...)"):
+            return
+        wrong = _mismatches(HEARTBEAT_QOS, subs[0].qos_profile)
+        if not report.add("monitor: compatible with a MANUAL_BY_TOPIC heartbeat, lease 0.5 s", not wrong,
+                          wrong, hint="Request MANUAL_BY_TOPIC with a lease no shorter than 0.5 s."):
+            return
+        _pubs, problem = _endpoints(node.publishers, "/heartbeat/status", String)
+        if not report.add("monitor: it publishes on /heartbeat/status (std_msgs/msg/String)", not problem,
+                          problem,
+                          hint="self.status = self.create_publisher(String, 'heartbeat/status', 10)"):
+            return
+        said: list[tuple[float, str]] = []  # (time.monotonic(), text)
+        probe.create_subscription(String, "/heartbeat/status",
+                                  lambda m: said.append((time.monotonic(), m.data.strip().lower())),
+                                  QoSProfile(depth=100, reliability=QoSReliabilityPolicy.BEST_EFFORT))
+        times = _run_quiet_spell(rt, "heartbeat_driver", ScheduledHeartbeat, {"speak_s": 1.0, "quiet_s": 1.5},
+                                 1.0)
+        if not report.add("monitor: a heartbeat runs against it", isinstance(times, dict),
+                          "" if isinstance(times, dict) else times):
+            return
+        _judge_statuses([s for s in said if s[0] <= times["end"]], times, report)
+
+
+def _judge_statuses(said: list[tuple[float, str]], times: dict[str, float], report) -> None:
+    lease = HEARTBEAT_QOS["lease_s"]
+    early = [t for t, text in said if text == "lost" and t < times["quiet"]]
+    report.add("monitor: says nothing is lost while the heartbeat asserts every 0.1 s", not early,
+               f"'lost' {len(early)} time(s)" if early else "",
+               hint="Report 'lost' only from the liveliness event.")
+    lost = [t - times["quiet"] for t, text in said if text == "lost" and t >= times["quiet"]]
+    limit = lease + LOST_MARGIN_S
+    report.add(f"monitor: publishes 'lost' within {limit:g} s after the heartbeat stopped",
+               bool(lost) and lost[0] <= limit,
+               f"after {lost[0]:.2f} s" if lost else "no 'lost' arrived",
+               hint="SubscriptionEventCallbacks(liveliness=self.on_liveliness); in it, "
+                    "status.not_alive_count_change > 0 means a writer missed its lease.")
+    back = [t for t, text in said if text == "alive" and t >= times["resume"]]
+    report.add("monitor: publishes 'alive' when the heartbeat is back", bool(back),
+               "" if back else "no 'alive' after the heartbeat resumed",
+               hint="status.alive_count_change > 0 means a writer (re)gained liveliness.")

@@ -1,4 +1,10 @@
-"""Deadline: offered and requested deadline-missed events while a publisher pauses."""
+"""Deadline: offered and requested deadline-missed events while a publisher pauses.
+
+The notebook writes the two nodes itself (a talker with ``paused`` and ``offered_missed``, a
+listener with ``arrivals`` and ``requested_missed``); :func:`pause_talker` runs the schedule and
+:meth:`DeadlineResult.from_nodes` collects what they recorded. :func:`demo_deadline` does the same
+in one call with nodes built from lambdas (the tests use it).
+"""
 
 from __future__ import annotations
 
@@ -35,6 +41,31 @@ class DeadlineResult:
         """Deadline-missed events of ``which`` at any other time."""
         events = self.requested_missed if which == "requested" else self.offered_missed
         return len(events) - self.missed_during_pause(which)
+
+    @classmethod
+    def from_nodes(cls, talker, listener, start: float, deadline_s: float, pause: tuple) -> DeadlineResult:
+        """What ``talker`` (``offered_missed``) and ``listener`` (``arrivals``, ``requested_missed``)
+        recorded, as seconds since ``start`` (a ``time.monotonic()``). Events are ``(time.monotonic(),
+        total_count)``, all of them kept; arrivals are ``time.monotonic()`` values, those before
+        ``start`` left out."""
+        def since(events):
+            return [(t - start, count) for t, count in events]
+
+        return cls(deadline_s, tuple(pause), [t - start for t in listener.arrivals if t >= start],
+                   since(talker.offered_missed), since(listener.requested_missed))
+
+
+def pause_talker(talker, pause: tuple = (1.0, 2.0), duration_s: float = 3.0) -> float:
+    """Set ``talker.paused`` to True from ``pause[0]`` to ``pause[1]`` seconds from now, and return after
+    ``duration_s`` seconds. The talker's own timer keeps running; its callback skips publishing while
+    paused. Returns the start (``time.monotonic()``)."""
+    if not 0 <= pause[0] < pause[1] <= duration_s:
+        raise CourseError(f"pause must be (from, until) with 0 <= from < until <= duration_s, got {pause}")
+    start = time.monotonic()
+    for at, paused in ((pause[0], True), (pause[1], False), (duration_s, False)):
+        time.sleep(max(0.0, start + at - time.monotonic()))  # the nodes run in the executor meanwhile
+        talker.paused = paused
+    return start
 
 
 def demo_deadline(rt, period_s: float = 0.1, deadline_s: float = 0.3, pause: tuple = (1.0, 2.0),

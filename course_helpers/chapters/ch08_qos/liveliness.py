@@ -45,17 +45,19 @@ class LivelinessResult:
 class LivelinessWatcher(Node):
     """Subscribes to String topics and records each subscription's liveliness-changed events.
 
-    ``topics`` maps a label to (topic, QoS dict). :attr:`changed` maps each label to
+    ``topics`` maps a label to (topic, QoSProfile). :attr:`changed` maps each label to
     (``time.monotonic()``, alive_count, not_alive_count) events; :attr:`received` counts messages.
+    The notebook writes a node of its own with the same constructor and attributes, and passes it
+    to the demos as ``watcher_class``.
     """
 
-    def __init__(self, name: str, topics: dict[str, tuple[str, dict]]):
+    def __init__(self, name: str, topics: dict):
         super().__init__(name)
         self.changed: dict[str, list[tuple[float, int, int]]] = {label: [] for label in topics}
         self.received = {label: 0 for label in topics}
         for label, (topic, qos) in topics.items():
             self.create_subscription(
-                String, topic, partial(self.on_message, label), qos_from_dict(qos),
+                String, topic, partial(self.on_message, label), qos,
                 event_callbacks=SubscriptionEventCallbacks(liveliness=partial(self.on_liveliness, label)))
 
     def on_message(self, label: str, _msg: String) -> None:
@@ -64,20 +66,24 @@ class LivelinessWatcher(Node):
     def on_liveliness(self, label: str, status) -> None:
         self.changed[label].append((time.monotonic(), status.alive_count, status.not_alive_count))
 
-    def since(self, start: float, until: float | None = None) -> dict[str, list[tuple[float, int, int]]]:
-        """:attr:`changed` with times in seconds since ``start`` (events after ``until`` left out)."""
-        return {label: [(t - start, alive, not_alive) for t, alive, not_alive in events
-                        if until is None or t - start <= until]
-                for label, events in self.changed.items()}
+
+def _since(watcher, start: float, until: float | None = None) -> dict[str, list[tuple[float, int, int]]]:
+    """``watcher.changed`` with times in seconds since ``start`` (events after ``until`` left out)."""
+    return {label: [(t - start, alive, not_alive) for t, alive, not_alive in events
+                    if until is None or t - start <= until]
+            for label, events in watcher.changed.items()}
 
 
-def demo_liveliness_kill(rt, lease_s: float = 1.0, watch_s: float = 2.5) -> LivelinessResult:
+def demo_liveliness_kill(rt, lease_s: float = 1.0, watch_s: float = 2.5,
+                         watcher_class=LivelinessWatcher) -> LivelinessResult:
     """A publisher in a child process (AUTOMATIC liveliness, lease ``lease_s``) is killed with SIGKILL.
 
     Args:
         rt: the kernel's runtime (the subscription runs in it).
         lease_s: the liveliness lease both ends use.
         watch_s: seconds watched after the kill.
+        watcher_class: the subscribing node, built as ``watcher_class(name, {label: (topic, QoSProfile)})``
+            (see :class:`LivelinessWatcher`).
 
     The process cannot say goodbye; the subscription notices when the lease runs out without
     the participant's liveliness heartbeat, and its liveliness-changed event fires. Returns a
@@ -85,7 +91,7 @@ def demo_liveliness_kill(rt, lease_s: float = 1.0, watch_s: float = 2.5) -> Live
     """
     start = time.monotonic()
     qos = {"liveliness": "automatic", "lease_s": lease_s}
-    watcher = rt.add(LivelinessWatcher, "qos_liveliness_watch", {"automatic": ("qos_alive", qos)},
+    watcher = rt.add(watcher_class, "qos_liveliness_watch", {"automatic": ("qos_alive", qos_from_dict(qos))},
                      console=False)
     child = rt.spawn("qos_alive_talker", QosTalker,
                      params={"name": "qos_alive_talker", "topic": "qos_alive", "qos": qos, "rate_hz": 10.0},
@@ -98,7 +104,7 @@ def demo_liveliness_kill(rt, lease_s: float = 1.0, watch_s: float = 2.5) -> Live
     finally:
         rt.stop_child("qos_alive_talker")
         rt.remove(watcher)
-    return LivelinessResult(lease_s, cut, None, watcher.since(start), [], dict(watcher.received),
+    return LivelinessResult(lease_s, cut, None, _since(watcher, start), [], dict(watcher.received),
                             cut + watch_s)
 
 
@@ -145,24 +151,26 @@ class LivelinessTalker(Node):
 
 
 def demo_liveliness_manual(rt, lease_s: float = 0.5, period_s: float = 0.1, quiet_from: float = 1.0,
-                           quiet_until: float = 2.5, duration_s: float = 3.5) -> LivelinessResult:
+                           quiet_until: float = 2.5, duration_s: float = 3.5,
+                           watcher_class=LivelinessWatcher) -> LivelinessResult:
     """A child process publishes on two topics, AUTOMATIC and MANUAL_BY_TOPIC, goes quiet, then resumes.
 
     Args:
         rt: the kernel's runtime (the subscriptions run in it).
         lease_s, period_s, quiet_from, quiet_until: see :class:`LivelinessTalker`.
         duration_s: seconds watched from the start.
+        watcher_class: the subscribing node, as for :func:`demo_liveliness_kill`.
 
     The process stays alive all along. The AUTOMATIC writer stays alive (its participant keeps
     asserting for it); the MANUAL_BY_TOPIC writer must publish or call ``assert_liveliness()``
     within every lease, so it is declared lost (publisher: liveliness lost; subscription:
-    liveliness changed) until it speaks again. A child process is used because inside one
-    process Fast DDS delivers data directly and the participant's liveliness messages do not
-    reach a subscription of the same process. Returns a :class:`LivelinessResult` with the
-    labels 'automatic' and 'manual_by_topic'.
+    liveliness changed) until it speaks again. The publisher runs in a child process so that
+    liveliness travels between two participants, as between two programs on a robot. Returns a
+    :class:`LivelinessResult` with the labels 'automatic' and 'manual_by_topic'.
     """
-    topics = {kind: (f"qos_{kind}", {"liveliness": kind, "lease_s": lease_s}) for kind in KINDS}
-    watcher = rt.add(LivelinessWatcher, "qos_liveliness_sub", topics, console=False)
+    topics = {kind: (f"qos_{kind}", qos_from_dict({"liveliness": kind, "lease_s": lease_s}))
+              for kind in KINDS}
+    watcher = rt.add(watcher_class, "qos_liveliness_sub", topics, console=False)
     child = rt.spawn("qos_liveliness_pub", LivelinessTalker,
                      params={"lease_s": lease_s, "period_s": period_s, "quiet_from": quiet_from,
                              "quiet_until": quiet_until})
@@ -174,7 +182,7 @@ def demo_liveliness_manual(rt, lease_s: float = 0.5, period_s: float = 0.1, quie
     finally:
         rt.stop_child("qos_liveliness_pub")
         rt.remove(watcher)
-    return LivelinessResult(lease_s, quiet_from, quiet_until, watcher.since(start, duration_s), lost,
+    return LivelinessResult(lease_s, quiet_from, quiet_until, _since(watcher, start, duration_s), lost,
                             dict(watcher.received), duration_s)
 
 
