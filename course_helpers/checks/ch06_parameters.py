@@ -1,4 +1,12 @@
-"""Checker of chapter 06 (parameters): the configurable overheat monitor."""
+"""Checkers of chapter 06 (parameters): the configurable overheat monitor, and the conveyor launch.
+
+The launch exercise has two parts, as a real launch test does: a launch description
+(``conveyor_launch()``, a list of :class:`NodeLaunch`) and a test that proves the launched nodes
+talk (``conveyor_talks(rt)``). :func:`check_conveyor_launch` starts the description with the
+course's ``launch()``, reads the parameters back through each node's parameter services, asks
+the listener's process whether it hears, and runs the student's proof twice: on the student's
+nodes (it must say yes) and on a pair the checker miswires (it must say no).
+"""
 
 from __future__ import annotations
 
@@ -6,10 +14,11 @@ import threading
 import time
 
 from rclpy.node import Node
-from rclpy.parameter import Parameter
+from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64, String
 
+from course_helpers.chapters.ch06_parameters import NodeLaunch, launch
 from course_helpers.checks import CheckReport
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.waiting import poll_until
@@ -174,3 +183,131 @@ def _check_rejections(report: CheckReport, probe: OverheatProbe) -> None:
     report.add("warning_c = 50 is accepted", result.successful,
                "" if result.successful else f"reason {result.reason!r}",
                "Only reject when warning_c >= critical_c; accept everything else.")
+
+
+# ---------------------------------------------------------------------- exercise 06b: the conveyor launch
+CONVEYOR = {  # full name -> (kind, parameters the exercise asks for)
+    "/line1/belt_sensor": ("talker", {"topic": "items", "rate_hz": 10.0, "message": "item"}),
+    "/line1/counter": ("listener", {"topic": "items", "log_every": 5}),
+}
+CONVEYOR_TOPIC = "/line1/items"
+HEAR_TIMEOUT_S = 5.0  # how long the listener's process may take to hear its first message [s]
+LAUNCH_LABEL = "ex06_conveyor"
+MISWIRED_LABEL = "ex06_miswired"
+
+
+def check_conveyor_launch(describe, proves_they_talk, rt=None) -> CheckReport:
+    """Exercise 06b: launch ``describe()`` and run the proof ``proves_they_talk(rt)`` on real nodes.
+
+    ``describe`` returns the launch description (a list of NodeLaunch); ``proves_they_talk`` takes
+    the runtime and returns True when /line1/counter hears /line1/belt_sensor. Every process the
+    checker starts is stopped before it returns. Returns the CheckReport.
+    """
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise 06b - launch the conveyor and prove it talks")
+    entries = report.run("conveyor_launch() returns the launch description", describe,
+                         hint="Return a list of two NodeLaunch(kind, name, namespace=..., parameters={...}).")
+    if entries is None or not _check_description(report, entries):
+        return report
+    if not _check_proof_says_no(report, rt, proves_they_talk):
+        return report
+    group = report.run("the two nodes start together", lambda: launch(entries, label=LAUNCH_LABEL, rt=rt),
+                       hint="The error above is the child process's own; check kinds, names and parameter "
+                            "types (rate_hz is a double: 10.0, not 10).")
+    if group is None:
+        return report
+    probe = rt.add(Node, "conveyor_checker", console=False)
+    try:
+        report.add("the two nodes start together", True, ", ".join(group.node_names))
+        _check_parameters(report, rt, probe)
+        counter = next(child for child, entry in group.members if entry.fqn == "/line1/counter")
+        heard = poll_until(lambda: (counter.last("heard") or {}).get("count", 0) >= 1, HEAR_TIMEOUT_S)
+        last = (counter.last("heard") or {}).get("last", "")
+        report.add("the counter hears the belt sensor (its process says so)",
+                   heard and last.startswith("item "),
+                   f"last message heard: {last!r}" if heard else "it heard nothing",
+                   "Both nodes need the same topic *and* the same namespace: 'items' in /line1 is "
+                   "/line1/items.")
+        said = _ask_proof(proves_they_talk, rt)
+        report.add("your proof says yes for your running nodes", said is True, _said(said),
+                   "Look for /line1/belt_sensor among the publishers and /line1/counter among the "
+                   "subscriptions of /line1/items (wait for discovery with rt.poll_until), then wait for "
+                   "a message there.")
+    finally:
+        rt.remove(probe)
+        group.stop()
+    return report
+
+
+def _check_description(report: CheckReport, entries) -> bool:
+    if not (isinstance(entries, list) and len(entries) == 2
+            and all(isinstance(e, NodeLaunch) for e in entries)):
+        got = type(entries).__name__ if not isinstance(entries, list) else f"a list of {len(entries)}"
+        return report.add("it describes two nodes as NodeLaunch entries", False, f"got {got}",
+                          "return [NodeLaunch('talker', 'belt_sensor', namespace='/line1', "
+                          "parameters={...}), NodeLaunch('listener', ...)]")
+    report.add("it describes two nodes as NodeLaunch entries", True)
+    try:
+        found = {entry.fqn: entry.kind for entry in entries}
+    except Exception as error:  # a bad namespace: the entry's own message says what is allowed
+        return report.add("the nodes are /line1/belt_sensor (talker) and /line1/counter (listener)", False,
+                          str(error))
+    wanted = {fqn: kind for fqn, (kind, _params) in CONVEYOR.items()}
+    return report.add("the nodes are /line1/belt_sensor (talker) and /line1/counter (listener)",
+                      found == wanted, "" if found == wanted else f"got {found}",
+                      "name='belt_sensor' and name='counter', both with namespace='/line1'.")
+
+
+def _check_parameters(report: CheckReport, rt, probe: Node) -> None:
+    """Read every asked-for parameter back through the node's get_parameters service."""
+    wrong = []
+    for fqn, (_kind, wanted) in CONVEYOR.items():
+        client = AsyncParameterClient(probe, fqn)
+        if not client.wait_for_services(5.0):
+            wrong.append(f"{fqn} offers no parameter services")
+            continue
+        names = sorted(wanted)
+        response = rt.wait_for_future(client.get_parameters(names), 3.0, f"{fqn}'s parameters")
+        for name, value in zip(names, response.values, strict=True):
+            got = parameter_value_to_python(value)
+            if got != wanted[name] or type(got) is not type(wanted[name]):
+                wrong.append(f"{fqn} {name} = {got!r}")
+    report.add("the nodes run with the parameters asked for", not wrong, "; ".join(wrong),
+               "parameters={'topic': 'items', 'rate_hz': 10.0, 'message': 'item'} for the belt sensor, "
+               "{'topic': 'items', 'log_every': 5} for the counter.")
+
+
+def _check_proof_says_no(report: CheckReport, rt, proves_they_talk) -> bool:
+    """Run the proof on a pair that cannot talk (the counter listens on the wrong topic): it must say no."""
+    kind_t, talker = CONVEYOR["/line1/belt_sensor"]
+    kind_l, counter = CONVEYOR["/line1/counter"]
+    miswired = [NodeLaunch(kind_t, "belt_sensor", "/line1", dict(talker)),
+                NodeLaunch(kind_l, "counter", "/line1", {**counter, "topic": "items_v2"})]
+    group = report.run("the checker's miswired pair starts",
+                       lambda: launch(miswired, label=MISWIRED_LABEL, rt=rt))
+    if group is None:
+        return False
+    try:
+        said = _ask_proof(proves_they_talk, rt)
+    finally:
+        group.stop()
+        # its nodes leave the graph before the student's nodes (same names) start
+        poll_until(lambda: not set(group.node_names) & set(rt.graph_nodes()), 5.0)
+    return report.add("your proof says no when the counter listens on another topic (/line1/items_v2)",
+                      said is not True, _said(said),
+                      "A proof that does not look can be fooled: check that /line1/counter subscribes to the "
+                      "topic the belt sensor publishes on; messages on the topic alone do not show that.")
+
+
+def _ask_proof(proves_they_talk, rt):
+    """The proof's answer: True/False, or the exception it raised (counted as 'no')."""
+    try:
+        return proves_they_talk(rt)
+    except Exception as error:  # the student's proof gave up (a WaitTimeout, for instance)
+        return error
+
+
+def _said(answer) -> str:
+    if isinstance(answer, Exception):
+        return f"it raised {type(answer).__name__}: {str(answer).splitlines()[0] if str(answer) else ''}"
+    return f"it returned {answer!r}"

@@ -1,4 +1,4 @@
-"""Reference solution of chapter 06 (parameters); CI checks it with ``checks.ch06_parameters``."""
+"""Reference solutions of chapter 06 (parameters); CI checks them with ``checks.ch06_parameters``."""
 
 from __future__ import annotations
 
@@ -58,3 +58,34 @@ class OverheatMonitor(Node):
         else:
             status = 'ok'
         self.publisher.publish(String(data=status))
+
+
+def conveyor_launch():
+    """Exercise 06b, the launch description: the belt sensor and the counter of line 1, configured."""
+    from course_helpers.chapters.ch06_parameters import NodeLaunch
+
+    return [
+        NodeLaunch('talker', 'belt_sensor', namespace='/line1',
+                   parameters={'topic': 'items', 'rate_hz': 10.0, 'message': 'item'}),
+        NodeLaunch('listener', 'counter', namespace='/line1',
+                   parameters={'topic': 'items', 'log_every': 5}),
+    ]
+
+
+def conveyor_talks(rt, topic='/line1/items', timeout=5.0):
+    """Exercise 06b, the launch test: True when /line1/counter hears /line1/belt_sensor.
+
+    The graph must show the sensor publishing on /line1/items and the counter subscribing to it
+    (what `ros2 topic info -v /line1/items` lists), and messages must flow there.
+    """
+    def names(endpoints):
+        return {f"{e.node_namespace.rstrip('/')}/{e.node_name}" for e in endpoints}
+
+    def wired():
+        return ('/line1/belt_sensor' in names(rt.graph.get_publishers_info_by_topic(topic))
+                and '/line1/counter' in names(rt.graph.get_subscriptions_info_by_topic(topic)))
+
+    if not rt.poll_until(wired, timeout):  # discovery may still be under way: give it time
+        return False
+    heard = rt.wait_for_messages(topic, 'std_msgs/msg/String', count=3, timeout=timeout)
+    return all(msg.data.startswith('item ') for msg in heard)

@@ -13,6 +13,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import String
 
 from course_helpers.chapters.ch06_parameters.files import params_file_arguments
+from course_helpers.core.channel import report
 from course_helpers.core.errors import CourseError
 
 
@@ -46,7 +47,11 @@ class RateTalker(Node):
 
 
 class CountingListener(Node):
-    """Subscribes to ``topic`` and logs a line every ``log_every`` messages."""
+    """Subscribes to ``topic`` and logs a line every ``log_every`` messages.
+
+    In a child process it also reports ``heard`` (count, last message) over the process channel
+    at the first message and with every log line, so the kernel can tell that it hears.
+    """
 
     def __init__(self, name: str = "listener", **node_kwargs):
         super().__init__(name, **node_kwargs)
@@ -61,8 +66,11 @@ class CountingListener(Node):
 
     def on_message(self, msg: String) -> None:
         self.heard += 1
-        if self.heard % self.get_parameter("log_every").value == 0:
+        logs = self.heard % self.get_parameter("log_every").value == 0
+        if logs:
             self.get_logger().info(f"heard {self.heard} messages, last: {msg.data}")
+        if logs or self.heard == 1:
+            report("heard", count=self.heard, last=msg.data)
 
 
 NODE_KINDS = {"talker": RateTalker, "listener": CountingListener}

@@ -4,10 +4,13 @@
 counts the messages that arrive on its topic, plots requested against measured rate, and
 offers a slider widget that retunes live. The widget's plot is drawn in a thread of its
 own, never in the executor thread: drawing there would delay the very timers it measures.
+:meth:`RateTuner.show` displays the widget with a static record of its final state (the rate
+set, the rate measured for it, and the plot), which is what a saved copy of the notebook shows.
 """
 
 from __future__ import annotations
 
+import html
 import io
 import math
 import threading
@@ -24,6 +27,8 @@ from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_topic_name, resolve_interface
 
 REDRAW_IDLE_S = 5.0  # the drawing thread ends when no redraw was asked for this long (the node is gone)
+RECORD_AFTER_SLIDER_S = 2.5  # after a slider move, the record waits this long so the 1 s window is new
+RECORD_TITLE = "rate tuner"
 
 
 class RateTuner:
@@ -63,6 +68,11 @@ class RateTuner:
         self._redraw = threading.Event()  # set by the timer (executor thread), served by the drawing thread
         self._note = ("", 0.0)  # (HTML message, shown until this time)
         self._lock = threading.Lock()
+        self.record = None  # the static record shown by show()
+        self.last_measurement: tuple[float, float, float] | None = None  # (requested, measured Hz, seconds)
+        self.last_refusal: tuple[float, str] | None = None  # (requested Hz, reason)
+        self._syncing = False  # set while set_rate moves the slider (no second set_parameters call)
+        self._record_due: float | None = None  # monotonic time at which a slider move gets recorded
         self.node = self.rt.add(Node, "rate_tuner", console=False)
         self.client = AsyncParameterClient(self.node, self.target)
         self.node.create_subscription(resolve_interface(msg_type, "msg"), topic, self._on_message, 10)
@@ -93,7 +103,28 @@ class RateTuner:
         if result.successful:
             with self._lock:
                 self.setpoints.append((self._now(), float(hz)))
+            self._move_slider(float(hz))
+        else:
+            self.last_refusal = (float(hz), result.reason)
         return result
+
+    @property
+    def requested(self) -> float:
+        """The rate [Hz] last set (or read at start)."""
+        with self._lock:
+            return self.setpoints[-1][1]
+
+    def _move_slider(self, hz: float) -> None:
+        """Show a rate set from code on the slider too (the slider then does not set it again)."""
+        if self._widgets is None:
+            return
+        slider = self._widgets[0]
+        if slider.value != hz:
+            self._syncing = True
+            try:
+                slider.value = hz
+            finally:
+                self._syncing = False
 
     # ------------------------------------------------------------------ measuring
     def measure(self, seconds: float = 1.5, settle_s: float = 0.3) -> float:
@@ -105,6 +136,8 @@ class RateTuner:
         rate = self._rate_between(start, end)
         with self._lock:
             self.measurements.append(((start + end) / 2 - self.started, rate))
+        self.last_measurement = (self.requested, rate, seconds)
+        self.update_record()
         return rate
 
     def rolling_rate(self, window_s: float = 1.0) -> float:
@@ -180,13 +213,56 @@ class RateTuner:
                                      description=f"{self.parameter}", continuous_update=False)
         label = widgets.HTML()
         image = widgets.Image(format="png")
-        slider.observe(lambda change: self._on_slider(change["new"], label), names="value")
+        slider.observe(lambda change: None if self._syncing else self._on_slider(change["new"], label),
+                       names="value")
         first = self._widgets is None
         self._widgets = (slider, label, image)
         self._refresh_widgets()
         if first:
             threading.Thread(target=self._draw_when_asked, name="rate-tuner-plot", daemon=True).start()
         return widgets.VBox([widgets.HBox([slider, label]), image])
+
+    def show(self) -> None:
+        """Display :meth:`widget` with a static record of the tuner's state (updated by :meth:`measure`
+        and after slider moves), so that a saved copy of the notebook shows the final state."""
+        from course_helpers.notebook.records import show_with_record
+
+        widget = self.widget()
+        text, body = self._record_body()
+        self.record = show_with_record(widget, RECORD_TITLE, text, body)
+
+    def update_record(self) -> None:
+        """Replace the static record with the current state and plot (nothing before :meth:`show`)."""
+        if self.record is None:
+            return
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(7.5, 3.0), dpi=80)
+        FigureCanvasAgg(fig)
+        self.draw(fig.add_subplot())
+        fig.tight_layout()
+        text, body = self._record_body()
+        self.record.update(text, html_body=body, figure=fig)
+
+    def _record_body(self) -> tuple[str, str]:
+        """The record as text and HTML: the rate set, and the rate measured for that setting."""
+        requested = self.requested
+        lines = [f"{self.target}: {self.parameter} set to {requested:.1f} Hz"]
+        measured = self.last_measurement
+        if measured is not None and measured[0] == requested:
+            lines.append(f"measured on {self.topic}: {measured[1]:.1f} Hz (measure() over {measured[2]:g} s "
+                         "at this setting)")
+        elif self._now() - self.setpoints[-1][0] >= 1.5:  # the 1 s window holds only this setting
+            lines.append(f"measured on {self.topic}: {self.rolling_rate():.1f} Hz (the last 1 s)")
+        else:
+            lines.append(f"not measured yet at {requested:.1f} Hz")
+        if self.last_refusal is not None:
+            hz, reason = self.last_refusal
+            lines.append(f"last refused: {hz:g} Hz ({reason})")
+        text = "\n".join(lines)
+        body = "<p><b>Rate tuner</b> (final state)</p><pre>" + html.escape(text) + "</pre>"
+        return text, body
 
     def _on_slider(self, hz: float, label) -> None:
         try:
@@ -197,12 +273,18 @@ class RateTuner:
         if problem:
             self._note = (f"<span style='color:#cf222e'>{problem}</span>", time.monotonic() + 4.0)
             label.value = self._note[0]
+        self._record_due = time.monotonic() + RECORD_AFTER_SLIDER_S
 
     def _draw_when_asked(self) -> None:
-        """The drawing thread: redraw whenever the timer asks; end when it stops asking (node removed)."""
+        """The drawing thread: redraw whenever the timer asks; end when it stops asking (node removed).
+
+        A slider move is recorded here too, once the 1 s measuring window holds only the new rate."""
         while self._redraw.wait(REDRAW_IDLE_S) and self.rt.running:
             self._redraw.clear()
             self._refresh_widgets()
+            if self._record_due is not None and time.monotonic() >= self._record_due:
+                self._record_due = None
+                self.update_record()
 
     def _refresh_widgets(self) -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg

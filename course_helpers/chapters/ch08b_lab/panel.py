@@ -8,6 +8,10 @@ per run. The measuring is done by :func:`course_helpers.chapters.ch08b_lab.run.r
 in a background thread, so the notebook's other cells keep running meanwhile; the
 plot is drawn by :class:`course_helpers.chapters.ch08b_lab.plots.ResultsFigure`.
 
+In a notebook the panel is shown with a static record (``course_helpers.notebook.records``):
+the results table and a picture of the final plot, replaced whenever runs finish, so a saved
+copy of the notebook shows what the panel measured.
+
 Settings the engine would refuse are prevented (depth is disabled with KEEP_ALL,
 sliders are bounded) or explained in the panel, never shown as a traceback.
 Running the cell again closes the previous panel and its experiment first.
@@ -28,7 +32,7 @@ from course_helpers.chapters.ch08b_lab.config import (
     ExperimentConfig,
     preset,
 )
-from course_helpers.chapters.ch08b_lab.plots import ResultsFigure
+from course_helpers.chapters.ch08b_lab.plots import ResultsFigure, draw_still
 from course_helpers.chapters.ch08b_lab.results import ExperimentResult
 from course_helpers.chapters.ch08b_lab.run import run_experiment
 from course_helpers.core.errors import CourseError
@@ -37,6 +41,7 @@ from course_helpers.core.units import format_bytes
 RATES_HZ = (1, 2, 5, 10, 20, 50, 100, 200, 400, 500, 1000, 2000, 5000)
 PAYLOADS = (16, 256, 1024, 4096, 16384, 65536, 262144, 2**20, 2 * 2**20, 4 * 2**20)
 MAX_FRAME_HZ = 8.0  # the live plot redraws at most this often
+RECORD_TITLE = "QoS lab"
 _ROW_COLUMNS = (("#", None), ("run", "run"), ("sent", "published"), ("delivered", "delivered"),
                 ("lost (gaps)", "lost_seq"), ("lost (events)", "lost_events"), ("in flight", "in_flight"),
                 ("publish errors", "publish_errors"), ("p50 ms", "p50_ms"), ("p99 ms", "p99_ms"),
@@ -69,6 +74,9 @@ class QoSLab:
         self._stop = threading.Event()
         self._figure = ResultsFigure()
         self._last_frame = 0.0
+        self.record = None  # the static record, once the panel is displayed in a notebook
+        self._last_runs: list[ExperimentResult] = []  # the runs of the last start(), as the plot shows them
+        self._recorded: tuple = ()  # what the record shows now (so an update is made once)
         self._build()
         self._validate(announce=True)
         self._show_frame([])
@@ -153,9 +161,35 @@ class QoSLab:
                 self.processing, self.transport, self.duration, self.late_joiner)
 
     def _ipython_display_(self):
-        from IPython.display import display
+        from course_helpers.notebook.records import show_with_record
 
-        display(self.widget)
+        text, body = self._record_body()
+        self.record = show_with_record(self.widget, RECORD_TITLE, text, body)
+        self._recorded = ()
+
+    def update_record(self) -> None:
+        """Replace the static record with the results table and a picture of the last runs' plot.
+
+        Called when runs finish and by :meth:`wait`; does nothing before the panel is displayed
+        or when the record already shows these runs.
+        """
+        key = (len(self.results), tuple(id(r) for r in self._last_runs))
+        if self.record is None or key == self._recorded:
+            return
+        self._recorded = key
+        text, body = self._record_body()
+        figure = draw_still(self._last_runs) if self._last_runs else None
+        self.record.update(text, html_body=body, figure=figure)
+
+    def _record_body(self) -> tuple[str, str]:
+        """The record as plain text (one line per run) and HTML (the results table)."""
+        if not self.results:
+            text = "no runs yet: each run adds a row to the table"
+        else:
+            text = "\n".join(f"{number}. {result.summary()}" for number, result in enumerate(self.results, 1))
+        body = (f"<p><b>QoS lab</b>: {len(self.results)} run(s) in this session. The plot below shows "
+                "the last Run or Compare.</p>" + results_table_html(self.results))
+        return text, body
 
     # ------------------------------------------------------------------ configuration
     def config(self) -> ExperimentConfig:
@@ -246,7 +280,9 @@ class QoSLab:
 
     def _on_clear(self, _button=None) -> None:
         self.results.clear()
+        self._last_runs = []
         self._refresh_table()
+        self.update_record()
 
     def _load_preset(self, name: str) -> None:
         if self.running:
@@ -283,10 +319,13 @@ class QoSLab:
         self._thread.start()
 
     def wait(self, timeout: float = 60.0) -> bool:
-        """Wait until the running experiment ends; True if it did."""
+        """Wait until the running experiment ends (then the record shows its runs); True if it did."""
         if self._thread is not None:
             self._thread.join(timeout)
-        return not (self._thread is not None and self._thread.is_alive())
+        done = not (self._thread is not None and self._thread.is_alive())
+        if done:
+            self.update_record()
+        return done
 
     def _work(self, configs, stop: threading.Event) -> None:
         finished: list[ExperimentResult] = []
@@ -317,11 +356,13 @@ class QoSLab:
                 self.results.append(result)
                 self._refresh_table()
                 self._show_frame(finished, force=True)
+            self._last_runs = list(finished)
             self.frame_hz = _frame_rate(frames)
             self.live_frames = sum(len(times) for times in frames)
             lines = "<br>".join(html.escape(r.summary()) for r in finished)
             word = "Stopped" if stop.is_set() else "Done"
             self._set_status(f"{word}. {lines}", "info", escape=False)
+            self.update_record()
         except CourseError as error:
             self._set_status(str(error), "warning")
         except Exception as error:  # shown in the panel; the kernel and the panel keep working

@@ -317,3 +317,13 @@ def draw_results(runs, title: str | None = None, width_in: float = 12.0, height_
     figure = plt.figure(figsize=(width_in, height_in), dpi=100)
     ResultsFigure(figure).draw(runs, title)
     return figure
+
+
+def draw_still(runs, title: str | None = None, width_in: float = 12.0, height_in: float = 4.0):
+    """Like :func:`draw_results`, but a Figure of its own outside pyplot (safe in any thread, never
+    shown by the notebook's inline backend): for pictures saved as files or records."""
+    if not isinstance(runs, (list, tuple)):
+        runs = [runs]
+    still = ResultsFigure(width_in=width_in, height_in=height_in, dpi=100)
+    FigureCanvasAgg(still.figure)
+    return still.draw(runs, title).figure

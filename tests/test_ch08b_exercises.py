@@ -1,0 +1,85 @@
+"""Chapter 08b's task (a QoS for a burst to a slow subscriber) and the lab panel's record.
+
+The checker runs the real lab experiment: the publisher in a child process, the subscriber in
+this process, the samples over Fast DDS shared memory.
+"""
+
+from __future__ import annotations
+
+import pytest
+from rclpy.qos import Duration, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from course_helpers.chapters.ch08b_lab import ExperimentConfig, qos_lab
+from course_helpers.checks.ch08b_lab import BURST_SAMPLES, burst_config, check_burst_qos
+from course_helpers.solutions.ch08b_lab import burst_qos
+
+
+def _failed(report) -> list[str]:
+    return [c.name for c in report.criteria if not c.passed]
+
+
+def test_burst_checker_accepts_the_reference(rt):
+    report = check_burst_qos(burst_qos())
+    print(report)
+    assert report.passed, report.summary()
+    assert not rt.children()  # the publisher's process is gone
+
+
+def test_burst_checker_rejects_the_default_depth_although_it_is_reliable(rt):
+    # KEEP_LAST 10, RELIABLE: the reader's queue overwrites samples that the slow callback has not
+    # taken yet. Reliability does not bring them back (the writer's resends go to a full queue).
+    report = check_burst_qos(QoSProfile(depth=10))
+    print(report)
+    assert _failed(report) == [f"loss target: at most 0 of the {BURST_SAMPLES} samples lost"]
+
+
+def test_burst_checker_rejects_a_missed_latency_target(rt):
+    # The reference's last sample waits for the ~60 before it (10 ms each): never within 50 ms.
+    report = check_burst_qos(burst_qos(), max_p99_ms=50.0)
+    print(report)
+    assert _failed(report) == ["latency target: p99 at most 50 ms"]
+
+
+@pytest.mark.parametrize("qos, words", [
+    (None, "must be a rclpy.qos.QoSProfile"),
+    (QoSProfile(depth=10, lifespan=Duration(seconds=1)), "leave lifespan unset"),
+    (QoSProfile(depth=5000), "depth must be a whole number from 1 to 1000"),
+])
+def test_burst_checker_explains_a_profile_it_cannot_run(qos, words):
+    report = check_burst_qos(qos)
+    assert _failed(report) == ["the QoS is a profile the lab can run"]
+    assert words in report.criteria[0].detail
+
+
+def test_burst_config_keeps_the_load_and_takes_the_policies():
+    config = burst_config(QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=1,
+                                     reliability=ReliabilityPolicy.BEST_EFFORT))
+    assert isinstance(config, ExperimentConfig)
+    assert (config.history, config.depth, config.reliability) == ("keep_all", None, "best_effort")
+    assert config.count == BURST_SAMPLES and config.processing_ms == 10.0
+
+
+def test_lab_record_holds_the_table_of_runs_and_the_final_plot(rt):
+    lab = qos_lab()
+    updates = []
+
+    class KeptRecord:  # stands in for the notebook's Record outside a kernel: keeps each update
+        def update(self, text, html_body=None, figure=None):
+            updates.append((text, html_body, figure))
+
+    lab.record = KeptRecord()
+    try:
+        config = ExperimentConfig(reliability="reliable", depth=10, rate_hz=100, duration_s=0.2,
+                                  label="small")
+        lab.start([config])
+        assert lab.wait(60)
+        (result,) = lab.results
+        text, body, figure = updates[-1]
+        assert text == f"1. {result.summary()}"
+        assert "qos-lab-results" in body and "<td style" in body and "small" in body
+        assert figure is not None and len(figure.axes) == 3
+        count = len(updates)
+        lab.wait()
+        assert len(updates) == count  # the same runs are recorded once
+    finally:
+        lab.close()
