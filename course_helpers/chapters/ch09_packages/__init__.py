@@ -6,7 +6,7 @@
 * ``environment``: what ``source install/setup.bash`` does, from colcon's ``.dsv`` hooks;
 * ``executables``: find and run a package's executables as ``ros2 run`` does;
 * ``interfaces``: create, build and load new interface packages; :class:`MessagePublisher`;
-* ``progress``: :func:`build_progress`, a live indicator for builds.
+* ``progress``: :func:`build_progress`, a live indicator for builds that leaves a record of the steps.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from course_helpers.chapters.ch09_packages.interfaces import (
     build_interface_package,
     create_interface_package,
     interface_env,
+    kernel_prefix,
     load_interfaces,
 )
 from course_helpers.chapters.ch09_packages.package_files import (
@@ -37,6 +38,6 @@ from course_helpers.chapters.ch09_packages.progress import build_progress
 from course_helpers.chapters.ch09_packages.workspace import Workspace
 
 __all__ = ["ColconBuild", "MessagePublisher", "Workspace", "ament_python_files", "build_interface_package",
-           "build_progress", "create_interface_package", "find_executable", "interface_env",
+           "build_progress", "create_interface_package", "find_executable", "interface_env", "kernel_prefix",
            "load_interfaces", "package_xml", "read_manifest", "running_processes", "setup_cfg", "setup_py",
            "start_process", "stop_process", "wait_for_process_node"]

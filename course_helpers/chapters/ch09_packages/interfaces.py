@@ -2,7 +2,9 @@
 
 * :func:`create_interface_package` writes an interface package (``.msg``, ``.srv``,
   ``.action``, package.xml, CMakeLists.txt);
-* :func:`build_interface_package` builds it with rosidl into a temporary prefix;
+* :func:`build_interface_package` builds it with rosidl into a temporary prefix, such as
+  :func:`kernel_prefix`, which lasts as long as this process, so that running the notebook
+  again with the same definitions finds the package up to date instead of building it again;
 * :func:`load_interfaces` imports the generated classes into the running kernel, and
   :func:`interface_env` gives a new process what it needs to import them;
 * :class:`MessagePublisher` is a child-process target that publishes such a new message
@@ -11,6 +13,7 @@
 
 from __future__ import annotations
 
+import atexit
 import ctypes
 import hashlib
 import importlib
@@ -18,6 +21,7 @@ import os
 import re
 import shutil
 import sys
+import tempfile
 import textwrap
 from collections.abc import Callable
 from pathlib import Path
@@ -42,6 +46,24 @@ _LIBRARY_ORDER = ("generator_c", "typesupport_introspection_c", "typesupport_fas
 
 # Interface packages imported into this process: name -> digest of their definitions.
 _loaded_interfaces: dict[str, str] = {}
+# The folder of kernel_prefix(): made on first use, removed when this process exits.
+_kernel_dir: Path | None = None
+
+
+def kernel_prefix(package: str) -> Path:
+    """An install prefix for ``package`` that lasts until this process (the kernel) exits.
+
+    A workspace is deleted at the end of the chapter, but the kernel keeps the libraries it
+    loaded from the prefix; and running the notebook again with unchanged definitions finds
+    the package in this prefix up to date, so it is not built twice. Returns
+    ``<temporary folder>/<package>/install``; the build folder goes beside it.
+    """
+    global _kernel_dir
+    check_package_name(package)
+    if _kernel_dir is None or not _kernel_dir.is_dir():
+        _kernel_dir = Path(tempfile.mkdtemp(prefix="ch09_interfaces_"))
+        atexit.register(shutil.rmtree, _kernel_dir, True)
+    return _kernel_dir / package / "install"
 
 
 def create_interface_package(parent_dir: str | os.PathLike, name: str,
@@ -90,8 +112,10 @@ def build_interface_package(source_dir: str | os.PathLike, install_prefix: str |
     """Build the interface package in ``source_dir`` with rosidl (CMake) into ``install_prefix``.
 
     ``colcon build`` would run the same CMake configure/build/install steps for a package
-    whose build type is ament_cmake. ``progress`` gets a line per step, then 'done' or
-    'FAILED'. Returns the :class:`~course_helpers.core.build_interfaces.BuildResult`.
+    whose build type is ament_cmake. The build folder is ``install_prefix``'s sibling
+    ``build_interfaces/NAME``; a package already installed there from the same definitions
+    is not built again (``BuildResult.rebuilt`` is False). ``progress`` gets a line per step,
+    then 'done' or 'FAILED'. Returns the :class:`~course_helpers.core.build_interfaces.BuildResult`.
     """
     prefix = Path(install_prefix)
     report = progress or (lambda _line: None)
