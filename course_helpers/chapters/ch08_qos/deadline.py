@@ -3,7 +3,7 @@
 The notebook writes the two nodes itself (a talker with ``paused`` and ``offered_missed``, a
 listener with ``arrivals`` and ``requested_missed``); :func:`pause_talker` runs the schedule and
 :meth:`DeadlineResult.from_nodes` collects what they recorded. :func:`demo_deadline` does the same
-in one call with nodes built from lambdas (the tests use it).
+in one call, with plain nodes and lambdas.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch08_qos.common import DemoClock, remove_nodes
+from course_helpers.chapters.ch08_qos.common import remove_nodes
 from course_helpers.core.errors import CourseError
 from course_helpers.core.qos_dict import seconds_to_duration
 
@@ -79,38 +79,34 @@ def demo_deadline(rt, period_s: float = 0.1, deadline_s: float = 0.3, pause: tup
         pause: (from, until) seconds after the start while the publisher is silent.
         duration_s: how long the demo runs.
 
-    DDS checks the deadline at both ends: the publisher gets 'offered deadline missed', the
+    The one-call form of the notebook's deadline lesson (its nodes are plain nodes with lambdas):
+    DDS checks the deadline at both ends, the publisher gets 'offered deadline missed', the
     subscription 'requested deadline missed', about once per ``deadline_s`` of silence.
     Returns a :class:`DeadlineResult`.
     """
     if not period_s < deadline_s:
         raise CourseError(f"period_s ({period_s}) must be shorter than deadline_s ({deadline_s})")
-    clock = DemoClock()
-    result = DeadlineResult(deadline_s, tuple(pause), [], [], [])
     profile = QoSProfile(depth=10, deadline=seconds_to_duration(deadline_s, "deadline_s"))
-    sub_node = rt.node("qos_deadline_sub", console=False)
-    sub_node.create_subscription(
-        String, "qos_deadline", lambda _m: result.arrivals.append(clock.now()), profile,
+    listener = rt.node("qos_deadline_sub", console=False)
+    listener.arrivals, listener.requested_missed = [], []
+    listener.create_subscription(
+        String, "qos_deadline", lambda _m: listener.arrivals.append(time.monotonic()), profile,
         event_callbacks=SubscriptionEventCallbacks(
-            deadline=lambda s: result.requested_missed.append((clock.now(), s.total_count))))
-    pub_node = rt.node("qos_deadline_pub", console=False)
-    publisher = pub_node.create_publisher(
+            deadline=lambda s: listener.requested_missed.append((time.monotonic(), s.total_count))))
+    talker = rt.node("qos_deadline_pub", console=False)
+    talker.paused, talker.offered_missed = False, []
+    publisher = talker.create_publisher(
         String, "qos_deadline", profile,
         event_callbacks=PublisherEventCallbacks(
-            deadline=lambda s: result.offered_missed.append((clock.now(), s.total_count))))
-    rt.wait_until(lambda: publisher.get_subscription_count() > 0, 5.0, "matching")
-    clock.start = time.monotonic()
-
-    def tick():
-        if not pause[0] <= clock.now() < pause[1]:
-            publisher.publish(String(data="on time"))
-
-    pub_node.create_timer(period_s, tick)
+            deadline=lambda s: talker.offered_missed.append((time.monotonic(), s.total_count))))
     try:
-        time.sleep(duration_s)  # the demo runs; the callbacks record what happens
+        rt.wait_until(lambda: publisher.get_subscription_count() > 0, 5.0, "matching")
+        message = String(data="on time")
+        talker.create_timer(period_s, lambda: None if talker.paused else publisher.publish(message))
+        start = pause_talker(talker, pause, duration_s)
     finally:
-        remove_nodes(rt, pub_node, sub_node)
-    return result
+        remove_nodes(rt, talker, listener)
+    return DeadlineResult.from_nodes(talker, listener, start, deadline_s, pause)
 
 
 def plot_deadline(result: DeadlineResult):
