@@ -12,7 +12,6 @@ import time
 
 import pytest
 import rclpy
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from std_msgs.msg import Float64
 
@@ -28,6 +27,7 @@ from course_helpers.chapters.ch01_architecture import (
 )
 from course_helpers.chapters.ch02_executors import measure_blocking, measure_timer_jitter, spin_for
 from course_helpers.chapters.ch03_topics import (
+    ArrayListener,
     CmdVelPublisher,
     ImuPublisher,
     TemperatureSensor,
@@ -36,10 +36,9 @@ from course_helpers.chapters.ch03_topics import (
     measure_bandwidth,
     message_size,
     quaternion_from_rpy,
+    sensor_topics,
     sent_rate,
 )
-from course_helpers.checks.ch01_architecture import check_crash_exercise
-from course_helpers.checks.ch02_executors import check_responsive_robot
 from course_helpers.checks.ch03_topics import check_cmd_vel_logger, check_throughput, check_tilt_warning
 from course_helpers.solutions import ch03_topics as solution
 
@@ -84,22 +83,6 @@ def test_killing_one_node_process_leaves_the_others_talking(rt):
     assert after["talker_b"] > 5, after
 
 
-def test_crash_exercise_checker(rt):
-    rt.spawn("talker_a", NamedTalker, {"name": "talker_a"}, wait_for="/talker_a")
-    b = rt.spawn("talker_b", NamedTalker, {"name": "talker_b"}, wait_for="/talker_b")
-    counter = rt.add(ChatterCounter)
-    rt.wait_until(lambda: counter.counts["talker_b"] > 0, 10, "talker_b")
-    rt.children()["talker_a"].kill()
-    not_yet = check_crash_exercise(rt, counter, window_s=1.0)
-    assert not not_yet.passed
-    assert "still hearing talker_b" in not_yet.summary()
-    rt.spawn("talker_c", NamedTalker, {"name": "talker_c"}, wait_for="/talker_c")
-    b.kill()
-    time.sleep(0.2)
-    done = check_crash_exercise(rt, counter, window_s=1.0)
-    assert done.passed, done.summary()
-
-
 # ---------------------------------------------------------------------- chapter 02
 def test_blocking_callback_stalls_a_single_threaded_executor(rt):
     single = measure_blocking("single", separate_groups=False, duration_s=1.5, block_s=0.3)
@@ -123,8 +106,8 @@ def test_timer_jitter_grows_with_a_cpu_heavy_callback(rt):
     loaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=8)
     assert len(idle.intervals_s) > 100 and len(loaded.intervals_s) > 100
     assert abs(statistics_median(idle.intervals_s) - 0.01) < 0.002
-    assert loaded.worst_ms > 3.0, loaded.summary()
-    assert loaded.percentile_ms(95) > idle.percentile_ms(95), (idle.summary(), loaded.summary())
+    # the 8 ms callback holds the only thread: some call waits for it (true on a loaded machine too)
+    assert loaded.longest_ms > 13.0, loaded.summary()
 
 
 def statistics_median(values):
@@ -156,41 +139,6 @@ def test_spin_for_raises_a_callback_error_after_cleaning_up(rt, executor):
     assert "/failing_timer" not in rt.nodes()
 
 
-class Robot(Node):
-    """The exercise's node; ``grouped=True`` is the fix (the heartbeat in its own group)."""
-
-    def __init__(self, grouped: bool = False):
-        super().__init__("robot")
-        self.beats, self.frames, self.plans = [], 0, 0
-        beat_group = MutuallyExclusiveCallbackGroup() if grouped else None
-        slow_group = MutuallyExclusiveCallbackGroup() if grouped else None
-        self.heartbeat_timer = self.create_timer(0.1, self.heartbeat, callback_group=beat_group)
-        self.camera_timer = self.create_timer(0.2, self.camera, callback_group=slow_group)
-        self.planner_timer = self.create_timer(0.5, self.planner, callback_group=slow_group)
-
-    def heartbeat(self):
-        self.beats.append(time.monotonic())
-
-    def camera(self):
-        time.sleep(0.05)
-        self.frames += 1
-
-    def planner(self):
-        time.sleep(0.3)
-        self.plans += 1
-
-
-def test_responsive_robot_checker_accepts_grouped_callbacks(rt):
-    report = check_responsive_robot(lambda: Robot(grouped=True))
-    assert report.passed, report.summary()
-
-
-def test_responsive_robot_checker_rejects_the_default_group(rt):
-    report = check_responsive_robot(Robot)
-    assert not report.passed
-    assert "the heartbeat waited for the planner" in report.summary()
-
-
 # ---------------------------------------------------------------------- chapter 03 nodes
 def test_quaternion_and_imu_message_describe_the_tilt():
     x, y, z, w = quaternion_from_rpy(0, 0, 90)
@@ -220,6 +168,13 @@ def test_temperature_sensor_runs_in_a_child_process(rt):
              wait_for="/thermo_hot")
     msgs = rt.wait_for_messages("/sensor/temperature", Float64, count=3)
     assert all(29.0 <= m.data <= 31.0 for m in msgs)
+
+
+def test_array_listener_counts_every_topic_of_a_sensor_array(rt):
+    rt.spawn("sensor_array", make_sensor_array, {"count": 3, "rate_hz": 20}, wait_for="/sensor_array")
+    meter = rt.add(ArrayListener, sensor_topics(3))
+    rt.wait_until(lambda: meter.messages >= 30, 10, "messages from the three sensors")
+    assert meter.bytes == meter.messages * message_size(imu_message(frame_id="imu_0"))
 
 
 def test_sensor_array_reports_what_it_sent_over_the_channel(rt):

@@ -6,6 +6,7 @@
 * :class:`ImuPublisher` - ``sensor_msgs/msg/Imu`` on ``imu`` with a tilt you can set;
 * :func:`make_sensor_array` - N IMU nodes at R Hz (the throughput exercise), and a node that
   reports over the process channel how many messages they really sent (:func:`sent_rate` reads it);
+  :class:`ArrayListener` counts what arrives from all of them in the kernel;
 * :func:`measure_bandwidth` / :func:`plot_bandwidth` - the message-size-versus-rate demo.
 
 Every node is written the way a student would write it: a Node subclass, a timer instead of a sleep
@@ -168,6 +169,25 @@ class SentCounter(Node):
 
     def report_count(self) -> None:
         report("sent", count=sum(sensor.sent for sensor in self.sensors))
+
+
+class ArrayListener(Node):
+    """Subscribes (raw) to every topic in ``topics`` (sensor_msgs/Imu) and counts what arrives.
+
+    ``messages`` and ``bytes`` grow with every message (serialised size, like ``ros2 topic bw``);
+    the notebook reads them before and after a listening window.
+    """
+
+    def __init__(self, topics: list[str], name: str = "load_meter"):
+        super().__init__(name)
+        self.messages = 0
+        self.bytes = 0
+        self.array_subscriptions = [self.create_subscription(Imu, topic, self.on_message, 100, raw=True)
+                                    for topic in topics]
+
+    def on_message(self, raw: bytes) -> None:
+        self.messages += 1
+        self.bytes += len(raw)
 
 
 def sensor_topics(count: int = 10, namespace: str = "sensors") -> list[str]:

@@ -1,47 +1,122 @@
-"""Checker of chapter 01 (architecture): a third talker process, and a second crash."""
+"""Checker of chapter 01 (architecture): a watchdog that notices a crashed talker by its silence.
+
+The student's node subscribes to ``chatter`` (std_msgs/String, '<sender>: <count>') and publishes
+the name of every sender that went quiet on ``silent_talkers``. The checker starts two talker
+processes, kills one with SIGKILL, and checks that the watchdog reports it, once, long before the
+ROS graph forgets the dead node (the talkers announce a 5 s lease, so a crashed one stays listed
+that long, and leaves before a second run of the notebook could list it twice).
+"""
 
 from __future__ import annotations
 
-from course_helpers.chapters.ch01_architecture import ChatterCounter, count_during
-from course_helpers.checks import CheckReport
+import time
 
-ENOUGH_MESSAGES = 3  # from talker_c during the listening window (it publishes at 10 Hz)
+from std_msgs.msg import String
+
+from course_helpers.chapters.ch01_architecture import NamedTalker, short_lease_env
+from course_helpers.checks import CheckReport, student_node
+from course_helpers.core.waiting import poll_until, sleep_unless
+
+TALKERS = ("wd_talker_1", "wd_talker_2")  # the first one is killed
+TALKER_RATE_HZ = 20.0
+TALKER_LEASE_S = 5.0  # peers keep a crashed talker this long in their graph
+QUIET_WINDOW_S = 1.0  # both talkers talk: no alarm may come
+REPORT_WITHIN_S = 3.0  # the watchdog must report the killed talker this soon (its silence: 0.5 s),
+# well before its lease runs out
+REPEAT_WINDOW_S = 1.0  # after the report: no second alarm about the same silence
 
 
-def check_crash_exercise(rt, counter: ChatterCounter, window_s: float = 1.5) -> CheckReport:
-    """Check that a third talker process runs and that talker_b's process was killed.
+def _endpoint_types(rt, topic: str, node, publishers: bool) -> list[str]:
+    infos = (rt.graph.get_publishers_info_by_topic(topic) if publishers
+             else rt.graph.get_subscriptions_info_by_topic(topic))
+    return sorted({i.topic_type for i in infos
+                   if i.node_name == node.get_name() and i.node_namespace == node.get_namespace()})
+
+
+def _has_endpoint(report: CheckReport, rt, node, topic: str, publishers: bool, hint: str) -> bool:
+    poll_until(lambda: _endpoint_types(rt, topic, node, publishers), 2.0)
+    types = _endpoint_types(rt, topic, node, publishers)
+    verb = "publishes on" if publishers else "subscribes to"
+    detail = "" if types == ["std_msgs/msg/String"] else (
+        f"with type {', '.join(types)}" if types else "none found in the graph")
+    return report.add(f"{verb} {topic} with type std_msgs/msg/String", types == ["std_msgs/msg/String"],
+                      detail, hint)
+
+
+def check_silence_watchdog(node_class, rt=None) -> CheckReport:
+    """Check a silence watchdog: it reports a killed talker on ``silent_talkers``, once, and no other.
 
     Args:
-        rt: the kernel's course runtime.
-        counter: the running :class:`ChatterCounter` of the notebook.
-        window_s: seconds to listen to the counter.
+        node_class: the student's Node subclass, built without arguments.
+        rt: the course runtime (default: this process's).
 
     Returns:
-        A :class:`CheckReport` that passes when a child labelled ``talker_c`` runs ``/talker_c``
-        (a :class:`NamedTalker`), the child ``talker_b`` has been killed, and ``counter`` hears
-        talker_c and nobody else.
+        A :class:`CheckReport`. The node must subscribe to ``/chatter`` and publish on
+        ``/silent_talkers`` (both std_msgs/String); with two talker processes running, stay quiet;
+        after one is killed, publish that sender's name within 3 s, once; never name the survivor.
     """
-    report = CheckReport("Exercise: a third talker, and a second crash")
-    children = rt.children()
-    c = children.get("talker_c")
-    report.add("a child process labelled 'talker_c' is running", c is not None and c.alive,
-               "" if c is not None else "no child labelled talker_c",
-               hint="rt.spawn('talker_c', NamedTalker, {'name': 'talker_c'}, wait_for='/talker_c')")
-    in_graph = "/talker_c" in rt.graph_nodes()
-    report.add("node /talker_c is in the ROS graph", in_graph,
-               hint="Pass {'name': 'talker_c'} so the node gets that name.")
-    b = children.get("talker_b")
-    killed = b is not None and not b.alive
-    report.add("talker_b's process is dead", killed,
-               "" if killed else ("talker_b is still running" if b is not None
-                                  else "no child labelled talker_b: start it again, then kill it"),
-               hint="Keep the ChildProcess that rt.spawn returned and call its kill() method.")
-    heard = count_during(counter, window_s)
-    others = sorted(s for s, n in heard.items() if n and s != "talker_c")
-    hears_c = heard.get("talker_c", 0) >= ENOUGH_MESSAGES
-    report.add("the counter hears talker_c", hears_c, "" if hears_c else "no messages from talker_c",
-               hint="talker_c must publish on 'chatter', the topic the counter listens to.")
-    report.add("the counter hears nobody else", not others,
-               f"still hearing {', '.join(others)}" if others else "",
-               hint="Both talker_a and talker_b must be dead.")
+    from course_helpers.core.runtime import get_runtime
+
+    rt = rt or get_runtime()
+    report = CheckReport("Exercise: a watchdog for silent talkers")
+    errors_before = len(rt.errors)
+    with student_node(report, rt, node_class, "watchdog_checker") as (node, probe):
+        if node is None:
+            return report
+        subscribes = _has_endpoint(report, rt, node, "/chatter", False,
+                                   "self.create_subscription(String, 'chatter', self.on_chatter, 10)")
+        publishes = _has_endpoint(report, rt, node, "/silent_talkers", True,
+                                  "self.create_publisher(String, 'silent_talkers', 10)")
+        if not (subscribes and publishes):
+            report.add("two talkers, one killed", False, "not run: the node must subscribe and publish first",
+                       hint="Fix the criteria above, then check again.")
+            return report
+        alarms: list[str] = []
+        heard: set[str] = set()
+        probe.create_subscription(String, "silent_talkers", lambda m: alarms.append(m.data), 10)
+        probe.create_subscription(String, "chatter", lambda m: heard.add(m.data.split(":", 1)[0]), 10)
+        try:
+            _run_scenario(report, rt, alarms, heard)
+        finally:
+            for label in TALKERS:
+                if label in rt.children():
+                    rt.stop_child(label)
+        errors = rt.errors[errors_before:]
+        report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
+                   hint="Read the traceback in the node's console under the checker's cell.")
     return report
+
+
+def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str]) -> None:
+    dead, alive = TALKERS
+    lease = short_lease_env(TALKER_LEASE_S)
+    children = {name: rt.spawn(name, NamedTalker, {"name": name, "rate_hz": TALKER_RATE_HZ},
+                               wait_for=f"/{name}", env=lease) for name in TALKERS}
+    if not report.add("the checker's two talkers are heard", poll_until(lambda: heard >= set(TALKERS), 10),
+                      "" if heard >= set(TALKERS) else "no message from one of them within 10 s",
+                      hint="The machine may be very busy; run the check again."):
+        return
+    time.sleep(0.3)  # the watchdog hears them too
+    sleep_unless(lambda: alarms, QUIET_WINDOW_S)
+    report.add("no alarm while both talkers talk", not alarms, f"got {alarms[0]!r}" if alarms else "",
+               hint="Report a sender only when it has been silent for more than SILENCE_S.")
+    alarms.clear()
+    children[dead].kill()  # SIGKILL: a crash, no goodbye
+    killed = time.monotonic()
+    reported = poll_until(lambda: any(dead in a for a in alarms), REPORT_WITHIN_S)
+    after_s = time.monotonic() - killed
+    still_listed = f"/{dead}" in rt.graph_nodes()
+    report.add(f"reports {dead} within {REPORT_WITHIN_S:g} s of its crash", reported,
+               (f"after {after_s:.1f} s, while the ROS graph still listed /{dead}" if still_listed
+                else f"after {after_s:.1f} s") if reported else "no alarm naming it",
+               hint="A timer callback (every 0.1 s) must compare time.monotonic() with the time each "
+                    "sender was last heard; the ROS graph keeps a killed node for its whole lease.")
+    if not reported:
+        return
+    sleep_unless(lambda: sum(dead in a for a in alarms) > 1, REPEAT_WINDOW_S)
+    repeats = sum(dead in a for a in alarms)
+    report.add("reports that silence once", repeats == 1,
+               "" if repeats == 1 else f"{repeats} alarms naming {dead}",
+               hint="Remember whom you reported (a set) and forget it when the sender talks again.")
+    report.add(f"never reports {alive}, which keeps talking", not any(alive in a for a in alarms),
+               hint="Compare each sender's own last-heard time.")

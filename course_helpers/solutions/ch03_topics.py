@@ -114,3 +114,10 @@ def measure_load(node: Node, topics: list[str], duration_s: float = 2.0) -> tupl
     finally:
         for subscription in subscriptions:
             node.destroy_subscription(subscription)
+
+
+class ThroughputSolution:
+    """Exercise 3's two functions as one object, for ``show_passing_report`` in the notebook."""
+
+    expected_load = staticmethod(expected_load)
+    measure_load = staticmethod(measure_load)

@@ -1,0 +1,140 @@
+"""Exercises of chapters 01-04: each checker accepts the reference solution and rejects wrong ones.
+
+Real nodes over real Fast DDS: the checkers start talker processes, spin the student's node in an
+executor, call its services. Wrong solutions are the mistakes students make.
+"""
+
+from __future__ import annotations
+
+import time
+
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from std_msgs.msg import String
+
+from course_helpers.checks.ch01_architecture import check_silence_watchdog
+from course_helpers.checks.ch02_executors import check_responsive_robot
+from course_helpers.notebook.solution import solution_source
+from course_helpers.solutions.ch01_architecture import SilenceWatchdog
+from course_helpers.solutions.ch02_executors import Robot
+
+
+# ---------------------------------------------------------------------- 01: silence watchdog
+def test_watchdog_checker_accepts_the_reference(rt):
+    report = check_silence_watchdog(SilenceWatchdog, rt)
+    assert report.passed, report.summary()
+    assert "while the ROS graph still listed /wd_talker_1" in report.summary()
+    assert not [label for label in rt.children() if label.startswith("wd_talker")]
+
+
+class GraphWatchdog(SilenceWatchdog):
+    """Wrong: waits for the dead node to leave the ROS graph, which takes its whole lease (5 s)."""
+
+    def check(self):
+        present = {name for name, _ns in self.get_node_names_and_namespaces()}
+        for sender in self.last_heard:
+            if sender not in present and sender not in self.reported:
+                self.reported.add(sender)
+                self.alarm.publish(String(data=sender))
+
+
+class NaggingWatchdog(SilenceWatchdog):
+    """Wrong: reports a silent sender at every check, ten times a second."""
+
+    def check(self):
+        now = time.monotonic()
+        for sender, heard in self.last_heard.items():
+            if now - heard > self.SILENCE_S:
+                self.alarm.publish(String(data=sender))
+
+
+class DeafWatchdog(Node):
+    """Wrong: forgets to subscribe to chatter."""
+
+    def __init__(self):
+        super().__init__("silence_watchdog")
+        self.alarm = self.create_publisher(String, "silent_talkers", 10)
+
+
+def test_watchdog_checker_rejects_waiting_for_the_graph(rt):
+    report = check_silence_watchdog(GraphWatchdog, rt)
+    assert not report.passed
+    failed = [c.name for c in report.criteria if not c.passed]
+    assert failed == ["reports wd_talker_1 within 3 s of its crash"], report.summary()
+
+
+def test_watchdog_checker_rejects_repeated_alarms(rt):
+    report = check_silence_watchdog(NaggingWatchdog, rt)
+    failed = [c.name for c in report.criteria if not c.passed]
+    assert failed == ["reports that silence once"], report.summary()
+
+
+def test_watchdog_checker_stops_early_without_a_subscription(rt):
+    report = check_silence_watchdog(DeafWatchdog, rt)
+    assert not report.passed
+    summary = report.summary()
+    assert "[FAIL] subscribes to /chatter" in summary and "[pass] publishes on /silent_talkers" in summary
+    assert "not run" in summary
+    assert not rt.children()
+
+
+# ---------------------------------------------------------------------- 02: responsive robot
+class UngroupedRobot(Robot):
+    """Wrong: the exercise as given, every timer in the node's default group."""
+
+    def __init__(self):
+        super().__init__()
+        for timer in (self.heartbeat_timer, self.camera_timer, self.planner_timer):
+            self.destroy_timer(timer)
+        self.heartbeat_timer = self.create_timer(0.1, self.heartbeat)
+        self.camera_timer = self.create_timer(0.2, self.camera)
+        self.planner_timer = self.create_timer(0.5, self.planner)
+
+
+class HeartbeatWithPlanner(Robot):
+    """Wrong: the camera got its own group, but the heartbeat still shares one with the planner."""
+
+    def __init__(self):
+        super().__init__()
+        for timer in (self.heartbeat_timer, self.camera_timer, self.planner_timer):
+            self.destroy_timer(timer)
+        shared, camera_group = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
+        self.heartbeat_timer = self.create_timer(0.1, self.heartbeat, callback_group=shared)
+        self.camera_timer = self.create_timer(0.2, self.camera, callback_group=camera_group)
+        self.planner_timer = self.create_timer(0.5, self.planner, callback_group=shared)
+
+
+def test_robot_checker_accepts_the_reference(rt):
+    report = check_responsive_robot(Robot)
+    assert report.passed, report.summary()
+
+
+def test_robot_checker_rejects_the_default_group(rt):
+    report = check_responsive_robot(UngroupedRobot)
+    assert not report.passed
+    assert "the heartbeat waited for the planner" in report.summary()
+
+
+def test_robot_checker_rejects_a_heartbeat_that_shares_the_planners_group(rt):
+    report = check_responsive_robot(HeartbeatWithPlanner)
+    assert not report.passed
+    assert "the heartbeat waited for the planner" in report.summary()
+
+
+# ---------------------------------------------------------------------- show_solution finds them
+def test_show_solution_loads_the_reference_solutions():
+    assert "class SilenceWatchdog(Node)" in solution_source("ch01_architecture", "SilenceWatchdog")
+    assert "callback_group=beat_group" in solution_source("ch02_executors", "Robot")
+    for name in ("TiltMonitor", "tilt_deg", "CmdVelCsvLogger", "expected_load", "measure_load"):
+        assert solution_source("ch03_topics", name).lstrip().startswith(("class ", "def "))
+    for name in ("BatteryMonitor", "SumRelay"):
+        assert solution_source("ch04_services", name).startswith("class ")
+
+
+# ---------------------------------------------------------------------- 03: throughput
+def test_throughput_solution_object_passes_the_checker(rt):
+    from course_helpers.checks.ch03_topics import check_throughput
+    from course_helpers.solutions.ch03_topics import ThroughputSolution
+
+    report = check_throughput(ThroughputSolution.expected_load, ThroughputSolution.measure_load, rt)
+    assert report.passed, report.summary()
