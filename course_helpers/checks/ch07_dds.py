@@ -116,8 +116,9 @@ def check_domain_plan(plan, rt=None) -> CheckReport:
         report.add("your notebook sees the monitor", sees_monitor,
                    "" if sees_monitor else "/monitor not in the graph after 8 s",
                    hint="The monitor must be in the kernel's domain with a discovery range that reaches you.")
-        # Discovery sometimes waits one announcement period (about 3 s): give unwanted visibility
-        # a fair chance before declaring the team and the loner hidden.
+        # A new process that loses the race for the first answer waits one announcement period
+        # (0.1 s with the course's profile, 3 s with Fast DDS's), and a busy machine adds to it: give
+        # unwanted visibility a fair chance before declaring the team and the loner hidden.
         seen = _Visibility(rt)
         poll_until(seen.everything, max(0.0, started + UNWANTED_VISIBILITY_WAIT_S - time.monotonic()),
                    period=0.1)

@@ -1,9 +1,12 @@
 """Chapter 07, DDS and discovery, measured on the live system.
 
-* :mod:`.models` - four communication models routed message by message;
+* :mod:`.models` - four communication models routed message by message (a count in pure Python,
+  not a measurement: no DDS runs there);
 * :mod:`.listener` - a child-process listener that reports what it hears (domains, discovery server);
   the spare domain and the domain probe come from :mod:`course_helpers.core.domains`;
-* :mod:`.discovery` - how long a new process takes to find the kernel's node;
+* :mod:`.discovery` - how long a new process takes to find a node (the probe and the anchor);
+* :mod:`.tuning` - discovery with Fast DDS's default announcement period against the course's, and
+  what announcing costs;
 * :mod:`.server` - eProsima's discovery server, started and stopped from the notebook;
 * :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;
 * :mod:`.middleware` - the active and the installed rmw implementations;
@@ -16,6 +19,7 @@ The notebook uses ``from course_helpers.chapters import ch07_dds as dds`` and ``
 # ruff: noqa: F401  (every import below is a re-export for the notebook)
 
 from course_helpers.chapters.ch07_dds.discovery import (
+    DiscoveryAnchor,
     DiscoveryProbe,
     DiscoveryTiming,
     discovery_probe,
@@ -50,6 +54,7 @@ from course_helpers.chapters.ch07_dds.server import (
     stop_discovery_servers,
 )
 from course_helpers.chapters.ch07_dds.transports import (
+    BOUNCE_QOS,
     TRANSPORT_LABELS,
     Ping,
     Pong,
@@ -57,5 +62,15 @@ from course_helpers.chapters.ch07_dds.transports import (
     measure_transports,
     plot_transports,
     run_ping,
+)
+from course_helpers.chapters.ch07_dds.tuning import (
+    SETTINGS,
+    AnnouncementTraffic,
+    DiscoveryComparison,
+    compare_discovery,
+    discovery_port,
+    listen_to_announcements,
+    measure_announcements,
+    plot_discovery,
 )
 from course_helpers.core.domains import nodes_in_domain, reserve_spare_domain

@@ -1,8 +1,9 @@
-"""How long a new process takes to find the kernel's node, step by step (simple discovery).
+"""How long a new process takes to find a node, step by step (simple discovery).
 
-:func:`measure_discovery` starts fresh child processes one after the other; each runs
-:func:`discovery_probe`, which times its own node against the kernel's :class:`DiscoveryAnchor`
-and reports the timings over the process channel.
+A :class:`DiscoveryAnchor` is the node already running: in the kernel (:func:`measure_discovery`)
+or in a child process (:mod:`.tuning`). Each fresh child process runs :func:`discovery_probe`,
+which times its own :class:`DiscoveryProbe` node against the anchor and reports the timings over
+the process channel.
 """
 
 from __future__ import annotations
@@ -28,22 +29,22 @@ STEPS = ("create_node_s", "sees_node_s", "reader_matched_s", "writer_matched_s",
 
 @dataclass
 class DiscoveryTiming:
-    """Seconds from the start of a new process's first node until it found the kernel (None: never)."""
+    """Seconds from just before a new process's first node was created until each step (None: never)."""
 
     create_node_s: float  # creating the node, which creates the DDS participant
-    sees_node_s: float | None  # the kernel's anchor node appears in the child's graph
-    reader_matched_s: float | None  # the child's subscription matched the kernel's publisher
-    writer_matched_s: float | None  # the child's publisher matched the kernel's subscription
-    first_message_s: float | None  # first message from the kernel arrived
+    sees_node_s: float | None  # the anchor node appears in the child's graph
+    reader_matched_s: float | None  # the child's subscription matched the anchor's publisher
+    writer_matched_s: float | None  # the child's publisher matched the anchor's subscription
+    first_message_s: float | None  # first message from the anchor arrived
 
     @property
     def found(self) -> bool:
-        """True if the child saw the kernel's node and its subscription matched."""
+        """True if the child saw the anchor node and its subscription matched."""
         return self.reader_matched_s is not None and self.sees_node_s is not None
 
 
 class DiscoveryAnchor(Node):
-    """The kernel's side: publishes a beacon at 50 Hz and subscribes to the probes' echo topic."""
+    """The node already running: publishes a beacon at 50 Hz and subscribes to the probes' topic."""
 
     def __init__(self):
         super().__init__(ANCHOR_NODE)
@@ -97,7 +98,7 @@ class DiscoveryProbe(Node):
 
 
 def discovery_probe(timeout_s: float = 5.0) -> None:
-    """Child-process procedure: time how long this new process takes to find the kernel's anchor.
+    """Child-process procedure: time how long this new process takes to find the anchor node.
 
     Waits at most ``timeout_s`` seconds, then reports ``result`` with one entry per step in
     :data:`STEPS` (seconds, or None for a step that never happened).

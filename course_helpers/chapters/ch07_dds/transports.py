@@ -134,6 +134,10 @@ class TransportResult:
         """Median round trip / 2, in milliseconds."""
         return statistics.median(self.round_trips[transport][size]) / 2 * 1e3
 
+    def fastest_ms(self, transport: str, size: int) -> float:
+        """The fastest round trip / 2, in milliseconds: what is left when nothing got in the way."""
+        return min(self.round_trips[transport][size]) / 2 * 1e3
+
     def throughput_mb_s(self, transport: str, size: int) -> float:
         """Megabytes per second if messages of ``size`` followed each other at the one-way latency."""
         return size / (self.one_way_ms(transport, size) / 1e3) / 1e6
