@@ -1,0 +1,279 @@
+"""Graded assignments with nbgrader: the instructor source, the student release, autograding.
+
+Usage (from the repository root, with the course's venv)::
+
+    python tools/assignments.py source  [CHAPTER ...]     # assignments/source/<chapter>/ only
+    python tools/assignments.py release [CHAPTER ...]     # source, validated, then the release
+    python tools/assignments.py grade SUBMISSIONS --assignment 04_services
+
+CHAPTER is a prefix of a notebook's name (``04`` or ``04_services``); no chapter means every
+chapter with a graded exercise. ``release`` runs the instructor source once with the student
+build (each reference solution must pass its checker: the points of a test cell are the
+number of criteria it passed), runs nbgrader's own ``generate_assignment``, builds
+``course_helpers`` without ``solutions/`` into ``assignments/student_build`` and checks that the
+checkers import there and that no reference solution reached the release.
+
+``grade`` takes a folder with one folder per student, holding ``<assignment>/<assignment>.ipynb``
+(nbgrader's submitted layout) or ``<assignment>.ipynb``. Each submission is autograded by
+nbgrader in a process of its own with a fresh kernel, its own ROS domain and temporary folder,
+a timeout per cell and a wall clock for the whole run (:mod:`grading.isolation`,
+:mod:`grading.guarded`); what it leaves running is killed and noted. It writes
+``graded/<assignment>/grades.csv`` (points and the reason for every lost point),
+``feedback/<student>.html`` (nbgrader's feedback) and ``log.json`` under the course directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from grading import isolation, results, source, student_build  # noqa: E402
+
+COURSE_DIR = source.REPO / "assignments"
+# nbgrader runs the venv's `alembic` for its gradebook: the venv's bin/ must be on PATH even
+# when this script is run as .venv/bin/python without activating the venv.
+os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
+AUTOGRADE_ONE = Path(__file__).resolve().parent / "grading" / "autograde_one.py"
+SUMMARY_PREFIX = ": "  # CheckReport.summary(): "<exercise>: PASSED (k/n criteria)"
+
+
+def _api(course_dir: Path):
+    from grading.autograde_one import grading_config
+    from nbgrader.apps import NbGraderAPI
+
+    return NbGraderAPI(config=grading_config(str(course_dir)))
+
+
+# ---------------------------------------------------------------------- source and release
+def make_sources(chapters: list[str] | None, course_dir: Path, points: dict | None = None) -> list:
+    """Write the instructor source of every chosen chapter that has a graded exercise."""
+    made = []
+    for path in source.chapter_notebooks(chapters):
+        chapter = source.load_chapter(path)
+        for exercise in chapter.exercises:
+            if exercise.skipped:
+                print(f"{chapter.name}: {exercise.grade_id} is not graded: {exercise.skipped}")
+        if not chapter.graded:
+            continue
+        source.write_source(chapter, course_dir, (points or {}).get(chapter.name))
+        made.append(chapter)
+        print(f"{chapter.name}: {len(chapter.graded)} graded exercise(s) -> "
+              f"{course_dir / 'source' / chapter.name}")
+    return made
+
+
+def _criteria(cell) -> tuple[int, int] | None:
+    """(passed, total) from the report a test cell printed (``... (k/n criteria)``)."""
+    for output in cell.get("outputs", []):
+        if output.get("output_type") == "stream" and "criteria)" in output.get("text", ""):
+            first = output["text"].split("criteria)")[0].rsplit("(", 1)[-1]
+            passed, total = first.split("/")
+            return int(passed), int(total)
+    return None
+
+
+def validate(chapter, course_dir: Path, build: Path, timeout: int) -> dict[str, int]:
+    """Run the instructor source in a fresh kernel with the student build; return the points of
+    each test cell (the criteria its reference solution passed). Raises if a reference fails."""
+    import nbformat
+    from nbclient import NotebookClient
+
+    folder = course_dir / "source" / chapter.name
+    nb = nbformat.read(folder / f"{chapter.name}.ipynb", as_version=4)
+    saved = {k: os.environ.get(k) for k in ("PYTHONPATH", "ROS_DOMAIN_ID")}
+    os.environ["PYTHONPATH"] = str(build)
+    os.environ.pop("ROS_DOMAIN_ID", None)
+    try:
+        NotebookClient(nb, timeout=timeout, allow_errors=True, kernel_name="python3",
+                       resources={"metadata": {"path": str(folder)}}).execute()
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+    points, problems = {}, []
+    for cell in nb.cells:
+        meta = cell.get("metadata", {}).get("nbgrader", {})
+        if not meta.get("grade"):
+            continue
+        counted = _criteria(cell)
+        errors = [o for o in cell.get("outputs", []) if o.get("output_type") == "error"]
+        if counted is None or counted[0] != counted[1] or errors:
+            detail = (f"{errors[0]['ename']}: {errors[0]['evalue']}" if errors else
+                      "no report" if counted is None else f"{counted[0]}/{counted[1]} criteria")
+            problems.append(f"{meta['grade_id']}: {detail}")
+        else:
+            points[meta["grade_id"]] = counted[1]
+    if problems:
+        raise SystemExit(f"{chapter.name}: the reference solutions do not pass their checkers: "
+                         + "; ".join(problems))
+    return points
+
+
+def release(chapters: list[str] | None, course_dir: Path, timeout: int) -> None:
+    build = student_build.build(course_dir / "student_build")
+    print(student_build.check_imports(build).strip())
+    made = make_sources(chapters, course_dir)
+    points = {}
+    for chapter in made:
+        started = time.monotonic()
+        points[chapter.name] = validate(chapter, course_dir, build, timeout)
+        print(f"{chapter.name}: reference solutions pass, points {points[chapter.name]} "
+              f"({time.monotonic() - started:.0f} s)")
+    make_sources([c.name for c in made], course_dir, points)
+    api = _api(course_dir)
+    for chapter in made:
+        result = api.generate_assignment(chapter.name, force=True, create=True)
+        if not result["success"]:
+            raise SystemExit(f"nbgrader generate_assignment {chapter.name} failed:\n{result['log']}")
+        print(f"{chapter.name}: released to {course_dir / 'release' / chapter.name}")
+    leaks = student_build.find_solutions(course_dir / "release") + student_build.find_solutions(build)
+    if leaks:
+        raise SystemExit("reference solutions found in the release:\n  " + "\n  ".join(leaks))
+    print(f"no reference solution in {course_dir / 'release'} or {build}")
+
+
+# ---------------------------------------------------------------------- grading
+def _max_points(course_dir: Path, assignment: str) -> dict[str, float]:
+    from nbgrader.api import Gradebook, MissingEntry
+
+    with Gradebook(f"sqlite:///{course_dir / 'gradebook.db'}") as gb:
+        try:
+            found = gb.find_assignment(assignment)
+        except MissingEntry:
+            raise SystemExit(f"{assignment} is not in the gradebook: run "
+                             f"`python tools/assignments.py release {assignment}` first") from None
+        return {cell.name: float(cell.max_score) for nb in found.notebooks for cell in nb.grade_cells}
+
+
+def _submission(folder: Path, assignment: str) -> Path | None:
+    """The folder holding the student's ``<assignment>.ipynb``."""
+    for candidate in (folder / assignment, folder):
+        if (candidate / f"{assignment}.ipynb").is_file():
+            return candidate
+    return None
+
+
+def grade_one(course_dir: Path, assignment: str, student: str, sub: Path, out: Path, build: Path,
+              timeout: int, wall_clock: int, max_points: dict[str, float]):
+    """Autograde one submission in a process of its own; sweep afterwards; return its results and log."""
+    from course_helpers import CourseError
+    from course_helpers.core import processes
+
+    target = course_dir / "submitted" / student / assignment
+    shutil.rmtree(target, ignore_errors=True)
+    shutil.copytree(sub, target, ignore=shutil.ignore_patterns(".ipynb_checkpoints", "__pycache__"))
+    run = isolation.Run(student)
+    env = isolation.student_env(run, str(build))
+    argv = [sys.executable, str(AUTOGRADE_ONE), str(course_dir), assignment, student,
+            "--timeout", str(timeout), "--record", run.record]
+    failure = ""
+    started = time.monotonic()
+    (out / "logs").mkdir(parents=True, exist_ok=True)
+    with open(out / "logs" / f"{student}.log", "w", encoding="utf-8") as log:
+        try:
+            code, output = processes.run(argv, env=env, cwd=str(course_dir), timeout=wall_clock, log=log)
+            if code != 0:
+                failure = "nbgrader could not grade it: " + " / ".join(output.strip().splitlines()[-3:])
+        except CourseError:
+            failure = f"grading took longer than the wall clock of {wall_clock} s and was stopped"
+    seconds = time.monotonic() - started
+    left = isolation.sweep(run.marker)
+    record = json.loads(Path(run.record).read_text()) if Path(run.record).exists() else {}
+    domains = record.get("domains", [])
+    held = isolation.domains_left(domains, run.marker)
+    tmp_removed = isolation.remove_tmp(run)
+    result = results.collect(course_dir, assignment, student, max_points, failure)
+    result.seconds = seconds
+    if left:
+        result.notes.append(f"killed {len(left)} process(es) left after the run: " + "; ".join(left))
+    if held:
+        result.notes.append(f"domain(s) {held} still held after the sweep")
+    if not tmp_removed:
+        result.notes.append(f"temporary folder {run.tmp} could not be removed")
+    feedback = None
+    if not failure:
+        made = _api(course_dir).generate_feedback(assignment, student, force=True)
+        html = course_dir / "feedback" / student / assignment / f"{assignment}.html"
+        if made["success"] and html.exists():
+            feedback = out / "feedback" / f"{student}.html"
+            feedback.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(html, feedback)
+    entry = {"student": student, "seconds": round(seconds, 1), "failure": failure, "marker": run.marker,
+             "events": record.get("events", []), "kernels": record.get("kernels", []),
+             "domains": domains, "domains_still_held": held,
+             "killed_after_run": left, "tmp_removed": tmp_removed,
+             "feedback": str(feedback) if feedback else None}
+    return result, entry
+
+
+def grade(submissions: Path, assignment: str, course_dir: Path, timeout: int, wall_clock: int,
+          out: Path | None) -> Path:
+    max_points = _max_points(course_dir, assignment)
+    build = course_dir / "student_build"
+    if not (build / "course_helpers").is_dir():
+        student_build.build(build)
+    out = out or course_dir / "graded" / assignment
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    isolation.become_subreaper()
+    table, log = [], []
+    for folder in sorted(p for p in submissions.iterdir() if p.is_dir()):
+        sub = _submission(folder, assignment)
+        if sub is None:
+            print(f"{folder.name}: no {assignment}.ipynb, skipped")
+            continue
+        result, entry = grade_one(course_dir, assignment, folder.name, sub, out, build, timeout, wall_clock,
+                                  max_points)
+        table.append(result)
+        log.append(entry)
+        lost = {g: r for g, (p, m, r) in result.grades.items() if p < m}
+        print(f"{folder.name}: {result.total:g}/{sum(max_points.values()):g} in {result.seconds:.0f} s"
+              + "".join(f"\n    {g}: {r}" for g, r in lost.items())
+              + "".join(f"\n    note: {n}" for n in result.notes))
+    path = results.write_csv(out / "grades.csv", table, max_points)
+    (out / "log.json").write_text(json.dumps(log, indent=1) + "\n", encoding="utf-8")
+    print(f"grade table: {path}")
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Graded assignments with nbgrader, from the notebooks.")
+    parser.add_argument("--course-dir", type=Path, default=COURSE_DIR, help="nbgrader course directory")
+    commands = parser.add_subparsers(dest="command", required=True)
+    p = commands.add_parser("source", help="write the instructor source from the notebooks")
+    p.add_argument("chapters", nargs="*")
+    p = commands.add_parser("release", help="validate the source and generate the student release")
+    p.add_argument("chapters", nargs="*")
+    p.add_argument("--timeout", type=int, default=180, help="seconds per cell of the validation run")
+    p = commands.add_parser("grade", help="autograde a folder of submissions")
+    p.add_argument("submissions", type=Path)
+    p.add_argument("--assignment", required=True, help="e.g. 04_services")
+    p.add_argument("--timeout", type=int, default=120, help="seconds per cell")
+    p.add_argument("--wall-clock", type=int, default=900, help="seconds per submission")
+    p.add_argument("--out", type=Path, default=None, help="default: <course dir>/graded/<assignment>")
+    args = parser.parse_args(argv)
+    course_dir = args.course_dir.resolve()
+    course_dir.mkdir(parents=True, exist_ok=True)
+    if not (course_dir / "nbgrader_config.py").is_file():
+        shutil.copyfile(COURSE_DIR / "nbgrader_config.py", course_dir / "nbgrader_config.py")
+    if args.command == "source":
+        make_sources(args.chapters, course_dir)
+    elif args.command == "release":
+        release(args.chapters, course_dir, args.timeout)
+    else:
+        grade(args.submissions.resolve(), args.assignment, course_dir, args.timeout, args.wall_clock,
+              args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

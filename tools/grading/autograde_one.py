@@ -1,0 +1,70 @@
+"""Autograde one student's submission with nbgrader: ``autograde_one.py COURSE_DIR ASSIGNMENT STUDENT``.
+
+Run by ``tools/assignments.py grade`` as a process of its own for every submission, with the
+student's own environment (:mod:`grading.isolation`) and a wall clock. It becomes a child
+subreaper first, so every process the student's kernel leaves behind - even one that
+detached itself - stays its descendant and can be found. It then runs nbgrader's autograde
+with the course's ``nbgrader_config.py`` and :class:`grading.guarded.GuardedExecute` in place
+of nbgrader's Execute. Exit status 0 when nbgrader succeeded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from grading.isolation import become_subreaper  # noqa: E402
+
+
+def grading_config(course_dir: str, timeout: int | None = None, record: str = ""):
+    """The course's nbgrader config with the guarded executor in the autograde pipeline."""
+    from nbgrader.preprocessors import Execute
+    from traitlets.config.loader import PyFileConfigLoader
+
+    from grading.guarded import GuardedExecute
+
+    config = PyFileConfigLoader("nbgrader_config.py", path=course_dir).load_config()
+    config.CourseDirectory.root = course_dir
+    from nbgrader.converters import Autograde
+
+    steps = list(config.Autograde.autograde_preprocessors) if "autograde_preprocessors" in config.Autograde \
+        else list(Autograde.class_traits()["autograde_preprocessors"].default())
+    config.Autograde.autograde_preprocessors = [GuardedExecute if s is Execute else s for s in steps]
+    if timeout:
+        config.Execute.timeout = timeout
+    limit = (config.Execute.timeout if "timeout" in config.Execute
+             else Execute.class_traits()["timeout"].default())
+    message = f"the cell ran longer than {limit} s and was interrupted"
+    config.Execute.error_on_timeout = {"ename": "CellTimeoutError", "evalue": message,
+                                       "traceback": [f"CellTimeoutError: {message}"]}
+    config.GuardedExecute.record_path = record
+    return config
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("course_dir")
+    parser.add_argument("assignment")
+    parser.add_argument("student")
+    parser.add_argument("--timeout", type=int, default=None, help="seconds per cell (Execute.timeout)")
+    parser.add_argument("--record", default="", help="where GuardedExecute writes what happened (JSON)")
+    args = parser.parse_args(argv)
+    become_subreaper()
+    from nbgrader.apps import NbGraderAPI
+
+    course_dir = os.path.abspath(args.course_dir)
+    os.chdir(course_dir)
+    config = grading_config(course_dir, args.timeout, args.record)
+    api = NbGraderAPI(config=config)
+    result = api.autograde(args.assignment, args.student, force=True, create=True)
+    print(result.get("log", ""))
+    if not result["success"]:
+        print(result.get("error", ""), file=sys.stderr)
+    return 0 if result["success"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
