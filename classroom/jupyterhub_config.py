@@ -79,12 +79,12 @@ c.Authenticator.admin_users = {name.strip() for name in os.environ.get("ROS2_COU
 
 # ---------------------------------------------------------------- each student's server
 c.JupyterHub.spawner_class = "localprocess"  # a process per student, as that Unix user
-# Sync the working copy, then become the single-user server (same process: the hub's stop
-# signals reach the server, which shuts its kernels down; the course's child processes die
-# with their kernel).
+# Sync the working copy, then become the single-user server (the same process, so the hub's
+# stop signals reach the server). classroom/singleuser.py makes the hub's first stop signal
+# (SIGINT) shut the kernels down properly, and with them every ROS process they started.
 c.Spawner.cmd = [PYTHON, os.path.join(COURSE_HOME, "tools", "working_copy.py"),
                  "--course", os.path.join(COURSE_HOME, "notebooks"), "--work", WORK_DIR,
-                 "--then", PYTHON, "-m", "jupyterhub.singleuser"]
+                 "--then", PYTHON, os.path.join(COURSE_HOME, "classroom", "singleuser.py")]
 c.Spawner.notebook_dir = WORK_DIR
 c.Spawner.default_url = "/lab/tree/00_welcome.ipynb"
 c.Spawner.args = [

@@ -32,6 +32,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import time
 import uuid
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -47,6 +48,7 @@ CONFIG = REPO / "classroom" / "jupyterhub_config.py"
 STUDENTS = ("r2cstudent1", "r2cstudent2", "r2cstudent3")
 NOTEBOOK = "00_welcome.ipynb"
 CELL_TIMEOUT_S = 120
+ARTIFACTS = REPO / "tests" / "artifacts"  # classroom_hub.json: the measured figures of the last run
 LOCAL_PROXY = REPO / ".venv" / "node" / "node_modules" / ".bin" / "configurable-http-proxy"
 
 requests = pytest.importorskip("requests", reason="requests is not installed")
@@ -126,6 +128,19 @@ def _pids_of(uid: int) -> list[int]:
         if uids is not None and uid in (uids.real, uids.effective):
             found.append(process.info["pid"])
     return found
+
+
+def _memory_mb(uid: int) -> float:
+    """Resident memory of all of a user's processes (server, kernel, ROS children), in MB."""
+    import psutil
+
+    total = 0
+    for pid in _pids_of(uid):
+        try:
+            total += psutil.Process(pid).memory_info().rss
+        except psutil.Error:
+            pass
+    return round(total / 1e6, 1)
 
 
 def _describe(pids: list[int]) -> list[str]:
@@ -376,13 +391,16 @@ def test_three_students_on_one_hub(hub, tmp_path):
     assert wrong.status_code == 403 and right.status_code == 302, (wrong.status_code, right.status_code)
 
     # Each student's server, started through the hub's REST API.
+    started = time.monotonic()
     for user in STUDENTS:
         hub.api("POST", f"/users/{user}/server")
     for user in STUDENTS:
         if not poll_until(lambda u=user: (hub.server(u) or {}).get("ready"), 150, period=0.5):
             pytest.fail(f"{user}'s server did not become ready:\n{hub.log_tail()}")
 
+    figures = {"servers_ready_s": round(time.monotonic() - started, 1)}
     # Notebook 00 of each student's working copy, in three kernels at the same time.
+    started = time.monotonic()
     def run_notebook(user: str) -> tuple[KernelClient, dict]:
         client, cells = _open_notebook(hub, user)
         assert len(cells) > 10, cells
@@ -392,6 +410,7 @@ def test_three_students_on_one_hub(hub, tmp_path):
 
     with ThreadPoolExecutor(len(STUDENTS)) as pool:
         results = dict(zip(STUDENTS, pool.map(run_notebook, STUDENTS), strict=True))
+    figures["notebook_00_in_three_kernels_s"] = round(time.monotonic() - started, 1)
     clients = {user: client for user, (client, _) in results.items()}
     facts = {user: fact for user, (_, fact) in results.items()}
 
@@ -418,6 +437,10 @@ def test_three_students_on_one_hub(hub, tmp_path):
     for client in clients.values():
         client.close()
 
+    figures["memory_per_student_mb"] = {user: _memory_mb(pwd.getpwnam(user).pw_uid) for user in STUDENTS}
+    os.makedirs(ARTIFACTS, exist_ok=True)
+    with open(os.path.join(ARTIFACTS, "classroom_hub.json"), "w", encoding="utf-8") as out:
+        json.dump(figures, out, indent=1)
     # Stopping a student's server leaves nothing of theirs running: no kernel, no ROS child.
     for user in STUDENTS:
         uid = pwd.getpwnam(user).pw_uid
@@ -435,3 +458,8 @@ def test_three_students_on_one_hub(hub, tmp_path):
             f"{user}'s processes left after their server stopped: {_describe(left)}\n{hub.log_tail()}"
         assert _domain_is_free(domains[user]) or _domain_holders(domains[user]).isdisjoint(before), \
             f"domain {domains[user]} is still held by {user}'s processes"
+    # ... because each server shut its kernel down (classroom/singleuser.py), not because the kernels
+    # found themselves orphaned and quit without cleaning up.
+    log = hub.log.read_text(errors="replace")
+    assert log.count("Shutting down 1 kernel") >= len(STUDENTS), hub.log_tail()
+    assert "Parent appears to have exited" not in log, hub.log_tail()
