@@ -216,7 +216,8 @@ def plot_discovery(comparison: DiscoveryComparison):
         values = [max(v, 1e-3) for v in comparison.seconds(setting)]  # the log axis starts at 1 ms
         ax.scatter(values, [row] * len(values), color=colours[setting], alpha=0.7, s=40)
     ax.axvline(DEFAULT_ANNOUNCEMENT_S, color="#6b7280", linestyle="--", linewidth=1)
-    ax.text(DEFAULT_ANNOUNCEMENT_S, 1.45, " one default period", fontsize=8, color="#6b7280", va="top")
+    ax.text(DEFAULT_ANNOUNCEMENT_S, 1.45, "one default period ", fontsize=8, color="#6b7280", va="top",
+            ha="right")
     periods = (DEFAULT_ANNOUNCEMENT_S, ANNOUNCEMENT_S)  # in the order of SETTINGS
     names = [f"{s}\n(every {p:g} s)" for s, p in zip(SETTINGS, periods, strict=True)]
     ax.set_yticks(range(len(SETTINGS)), names)
