@@ -228,6 +228,13 @@ def test_service_list_type_call(rt, ros2):
     assert {"/mg_set_flag", "/mg_trigger"} <= set(_lines(ros2("service list")[1]))
     assert "/mg_set_flag [std_srvs/srv/SetBool]" in _lines(ros2("service list -t")[1])
     assert ros2("service type /mg_set_flag") == (0, "std_srvs/srv/SetBool\n")
+    assert ros2("service info /mg_set_flag") == (
+        0, "Type: std_srvs/srv/SetBool\nClients count: 0\nServices count: 1\n")
+    client = node.create_client(SetBool, "mg_set_flag")
+    rt.wait_until(lambda: rt.graph.count_clients("/mg_set_flag") == 1, 5, "the client in the graph")
+    assert "Clients count: 1\n" in ros2("service info mg_set_flag")[1]
+    node.destroy_client(client)
+    assert "Unknown service '/mg_nowhere'" in ros2("service info /mg_nowhere")[1]
 
     code, out = ros2('service call /mg_set_flag std_srvs/srv/SetBool "{data: true}"')
     assert code == 0

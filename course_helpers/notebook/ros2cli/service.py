@@ -1,4 +1,4 @@
-"""``%ros2 service list|type|find|call`` (chapter 04).
+"""``%ros2 service list|type|info|find|call`` (chapter 04).
 """
 
 from __future__ import annotations
@@ -29,6 +29,9 @@ def add_verbs(parser):
     p = verbs.add_parser("type", help="Output a service's type")
     p.add_argument("service_name", help="Name of the ROS service, e.g. /add_two_ints")
     p.set_defaults(func=_service_type)
+    p = verbs.add_parser("info", help="Print a service's type and how many servers and clients it has")
+    p.add_argument("service_name", help="Name of the ROS service, e.g. /add_two_ints")
+    p.set_defaults(func=_service_info)
     p = verbs.add_parser("find", help="Output a list of available services of a given type")
     p.add_argument("service_type", help="Name of the ROS service type, e.g. std_srvs/srv/SetBool")
     p.set_defaults(func=_service_find)
@@ -67,6 +70,17 @@ def _service_type(rt, args):
         return f"Unknown service '{args.service_name}'"
     for each in types:
         print(each)
+    return None
+
+
+def _service_info(rt, args):
+    service = _topic_arg(args.service_name)
+    types = _service_types(rt, service)
+    if not types:
+        return f"Unknown service '{args.service_name}'"
+    print(f"Type: {', '.join(types)}")
+    print(f"Clients count: {rt.graph.count_clients(service)}")
+    print(f"Services count: {rt.graph.count_services(service)}")
     return None
 
 
