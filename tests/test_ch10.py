@@ -10,6 +10,7 @@ from course_interfaces.srv import PickItem
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from std_srvs.srv import Trigger
 
 from course_helpers import CourseError, WaitTimeout
 from course_helpers.chapters import ch10_capstone as cp
@@ -36,11 +37,41 @@ def test_pick_mission_completes(rt, robot):
     assert mission.wait(timeout=30), mission.state
     assert mission.steps == ["driving to shelf B2", "reached shelf B2", "picking widget-7",
                              "picked widget-7 from B2", "returning home", "reached home",
-                             "delivered widget-7"]
+                             "placed widget-7", "delivered widget-7"]
     assert mission.progress == 1.0
     assert any(0.05 < p < 0.45 for p in progress), "feedback drove the progress during the first leg"
     pose = rt.get("/robot1/navigator").pose
     assert pose is not None and abs(pose[0]) < 0.1 and abs(pose[1]) < 0.1  # back home
+    gripper = rt.get("/robot1/gripper")
+    assert gripper.state == "ready" and gripper.holding == "", "the delivered item was put down"
+    summary = cp.mission_summary(mission)
+    assert summary.splitlines()[0] == "mission widget-7@B2: done: delivered widget-7 (progress 100%)"
+    assert summary.splitlines()[1:] == [f"  - {step}" for step in mission.steps]
+    assert "<li>placed widget-7</li>" in cp.mission_html(mission)
+
+
+def test_place_item_needs_an_item_in_the_gripper(rt, robot):
+    client = rt.graph.create_client(Trigger, "/robot1/place_item")
+    try:
+        assert client.wait_for_service(timeout_sec=5)
+        response = rt.wait_for_future(client.call_async(Trigger.Request()), 5)
+    finally:
+        rt.call_in_executor(rt.graph.destroy_client, client)
+    assert not response.success and "empty" in response.message
+
+
+def test_state_graph_shows_the_boards_hidden_connections(rt, robot):
+    handle, _runner, _button = robot
+    board = rt.add(cp.StateBoard, "/robot1", console=False)
+    nodes = handle.node_names() + ["/robot1/mission_runner"]
+    nodes.remove("/robot1/camera")  # started without a camera
+    cp.collect_states(rt, board, nodes)
+    snap = cp.state_graph(rt, board)
+    assert snap.nodes == sorted([*nodes, "/state_board"])
+    assert sorted(snap.topics) == sorted(f"{n}/_state" for n in nodes)
+    for node in nodes:
+        assert snap.publishers(f"{node}/_state") == [node]
+        assert snap.subscribers(f"{node}/_state") == ["/state_board"]
 
 
 def test_pick_fails_away_from_the_shelf(rt, robot):

@@ -7,9 +7,9 @@
 * :mod:`.navigator` and :mod:`.missions` - the ``navigate`` action server and the mission runner;
 * :mod:`.fleet` - starting a robot (drivers in a child process), several robots by namespace,
   the operator's e-stop button;
-* :mod:`.states` - the state board that collects every node's latched state;
+* :mod:`.states` - the state board that collects every node's latched state, and its graph;
 * :mod:`.measure`, :mod:`.detectors`, :mod:`.plots` - the troubleshooting section;
-* :mod:`.widgets` - a mission's progress bar.
+* :mod:`.widgets` - a mission's progress bar, with a static record of the mission.
 
 The notebook uses ``from course_helpers.chapters import ch10_capstone as capstone``; the names it
 and the tests use are re-exported here, the rest is in the modules.
@@ -31,13 +31,14 @@ from course_helpers.chapters.ch10_capstone.measure import (
 from course_helpers.chapters.ch10_capstone.missions import Mission, MissionRunner
 from course_helpers.chapters.ch10_capstone.plots import plot_deliveries
 from course_helpers.chapters.ch10_capstone.robot import Perception, StatusLight, make_robot_drivers
-from course_helpers.chapters.ch10_capstone.states import StateBoard, collect_states, state_table
+from course_helpers.chapters.ch10_capstone.states import StateBoard, collect_states, state_graph, state_table
 from course_helpers.chapters.ch10_capstone.warehouse import SHELVES, make_frame
-from course_helpers.chapters.ch10_capstone.widgets import mission_progress
+from course_helpers.chapters.ch10_capstone.widgets import mission_html, mission_progress, mission_summary
 
 __all__ = [
     "SHELVES", "Delivery", "EStopButton", "Mission", "MissionRunner", "Perception", "Robot", "StateBoard",
     "StatusLight", "collect_states", "count_missed", "detect_marker_numpy", "detect_marker_python",
-    "endpoint_qos", "make_frame", "make_robot_drivers", "measure_delivery", "mission_progress",
-    "plot_deliveries", "qos_table", "start_robot", "state_table", "time_detector",
+    "endpoint_qos", "make_frame", "make_robot_drivers", "measure_delivery", "mission_html",
+    "mission_progress", "mission_summary",
+    "plot_deliveries", "qos_table", "start_robot", "state_graph", "state_table", "time_detector",
 ]

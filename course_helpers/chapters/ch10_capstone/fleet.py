@@ -43,7 +43,8 @@ def start_robot(rt, name: str = "robot1", camera: bool = True, camera_hz: float 
     dock from the warehouse map), ``camera`` False leaves the camera out (less CPU),
     ``camera_hz`` the camera's rate [Hz].
     Returns: a :class:`Robot` once the navigator hears odometry, it and the gripper hear the
-    released e-stop, and discovery shows every endpoint of the robot. Re-running replaces the
+    released e-stop, and discovery shows every endpoint of the robot (its topics and the safety
+    monitor's ``engage`` service). Re-running replaces the
     child process and the kernel's nodes of that robot.
     """
     namespace = f"/{name}"
@@ -64,11 +65,14 @@ def start_robot(rt, name: str = "robot1", camera: bool = True, camera_hz: float 
     if camera:
         publishers[CAMERA_TOPIC] = 1
 
+    engage = full_name(namespace, "safety_monitor/engage")  # the e-stop button's service
+
     def discovered() -> bool:
         graph = rt.graph
         return (all(graph.count_publishers(full_name(namespace, t)) >= n for t, n in publishers.items())
                 and all(graph.count_subscribers(full_name(namespace, t)) >= n
-                        for t, n in subscribers.items()))
+                        for t, n in subscribers.items())
+                and engage in {name for name, _types in graph.get_service_names_and_types()})
 
     rt.wait_until(discovered, 10.0, f"every endpoint of {namespace} in the graph")
     return Robot(namespace, drivers, navigator, gripper)

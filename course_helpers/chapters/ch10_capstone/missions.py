@@ -1,4 +1,5 @@
-"""Pick missions: drive to a shelf (action ``navigate``), pick (service ``pick_item``), drive home.
+"""Pick missions: drive to a shelf (action ``navigate``), pick (service ``pick_item``), drive home
+and put the item down there (service ``place_item``).
 
 :class:`MissionRunner` is the robot's client of both; :class:`Mission` is what it hands
 back at once, filled in as the mission runs in the executor.
@@ -17,6 +18,7 @@ from course_interfaces.srv import PickItem
 from geometry_msgs.msg import Point
 from rclpy.action import ActionClient
 from std_msgs.msg import String
+from std_srvs.srv import Trigger
 
 from course_helpers.chapters.ch10_capstone.channels import LATCHED_QOS
 from course_helpers.chapters.ch10_capstone.robot import RobotNode
@@ -26,7 +28,9 @@ from course_helpers.core.errors import CourseError
 
 @dataclass
 class Mission:
-    """A pick mission: drive to the shelf, pick, drive home. Filled in by :class:`MissionRunner`."""
+    """A pick mission: drive to the shelf, pick, drive home, place the item there.
+
+    Filled in by :class:`MissionRunner`."""
 
     item_id: str
     shelf: str
@@ -64,7 +68,7 @@ _LEGS = {"to_shelf": (0.0, 0.45), "home": (0.55, 1.0)}
 
 
 class MissionRunner(RobotNode):
-    """Runs pick missions with the navigator (action) and the gripper (service).
+    """Runs pick missions with the navigator (action) and the gripper (services).
 
     ``start(item_id, shelf)`` returns a :class:`Mission` at once; the mission runs as a
     coroutine in the executor and reports progress from the action's feedback.
@@ -75,6 +79,7 @@ class MissionRunner(RobotNode):
         self.home = tuple(home or home_of(namespace))
         self.navigate = ActionClient(self, Navigate, "navigate")
         self.pick = self.create_client(PickItem, "pick_item")
+        self.place = self.create_client(Trigger, "place_item")
         self.status_publisher = self.create_publisher(String, "mission/status", LATCHED_QOS)
         self.current: Mission | None = None
         self.goal_handle = None
@@ -95,8 +100,10 @@ class MissionRunner(RobotNode):
         if not self.navigate.wait_for_server(timeout_sec=timeout):
             raise CourseError(f"no navigate action server under {self.get_namespace()} "
                               f"after {timeout:g} s")
-        if not self.pick.wait_for_service(timeout_sec=timeout):
-            raise CourseError(f"no pick_item service under {self.get_namespace()} after {timeout:g} s")
+        for client in (self.pick, self.place):
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise CourseError(f"no {client.srv_name} service under {self.get_namespace()} "
+                                  f"after {timeout:g} s")
         if self.executor is None:
             raise CourseError("the mission runner is not spinning: add it with "
                               "rt.add(MissionRunner, '/robot1') first")
@@ -124,6 +131,11 @@ class MissionRunner(RobotNode):
         self.report(mission, "returning home", 0.55)
         if not await self.drive(mission, self.home, "home"):
             return
+        placed = await self.place.call_async(Trigger.Request())
+        if not placed.success:
+            self.end(mission, False, f"place failed: {placed.message}")
+            return
+        mission.update(step=placed.message)
         self.end(mission, True, f"delivered {mission.item_id}")
 
     async def drive(self, mission: Mission, point, leg: str) -> bool:

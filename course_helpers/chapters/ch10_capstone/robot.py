@@ -7,7 +7,7 @@ camera         30 Hz ``camera/image_raw`` (sensor_msgs/Image) child process (the
 lidar          10 Hz ``scan`` (sensor_msgs/LaserScan)        child process (the robot)
 base           ``cmd_vel`` in, ``odom`` out (nav_msgs)       child process (the robot)
 safety_monitor ``estop`` (RELIABLE + TRANSIENT_LOCAL)        child process (the robot)
-gripper        service ``pick_item`` (course_interfaces)     kernel
+gripper        services ``pick_item``, ``place_item``         kernel
 status_light   follows the e-stop (the late joiner)         kernel
 perception     ``camera/image_raw`` -> ``perception/...``    child process (section 7)
 ============== ============================================ =============================
@@ -38,7 +38,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, LaserScan
 from std_msgs.msg import String
-from std_srvs.srv import SetBool
+from std_srvs.srv import SetBool, Trigger
 
 from course_helpers.chapters.ch10_capstone.channels import (
     CAMERA_TOPIC,
@@ -247,7 +247,11 @@ class SafetyMonitor(RobotNode):
 
 
 class Gripper(RobotNode):
-    """Service ``pick_item``: succeeds when the robot stands at the shelf and the e-stop is released."""
+    """Service ``pick_item``: succeeds when the robot stands at the shelf and the e-stop is released.
+
+    Service ``place_item`` (std_srvs/Trigger) sets the item it holds down where the robot
+    stands (the mission runner calls it at the dock), so the gripper is empty again.
+    """
 
     def __init__(self, namespace: str = "", reach: float = 0.25):
         super().__init__("gripper", namespace)
@@ -256,6 +260,7 @@ class Gripper(RobotNode):
         self.holding = ""
         self.odom_subscription = self.create_subscription(Odometry, "odom", self.on_odom, ODOM_QOS)
         self.service = self.create_service(PickItem, "pick_item", self.on_pick)
+        self.place_service = self.create_service(Trigger, "place_item", self.on_place)
         self.set_state("ready")
 
     def on_odom(self, msg: Odometry) -> None:
@@ -276,6 +281,17 @@ class Gripper(RobotNode):
             self.holding = request.item_id
             response.success, response.message = True, f"picked {request.item_id} from {request.shelf}"
             self.set_state(f"holding {request.item_id}")
+        return response
+
+    def on_place(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        if self.estop_engaged:
+            response.success, response.message = False, "e-stop engaged: the gripper is locked"
+        elif not self.holding:
+            response.success, response.message = False, "nothing to place: the gripper is empty"
+        else:
+            response.success, response.message = True, f"placed {self.holding}"
+            self.holding = ""
+            self.set_state("ready")
         return response
 
     def on_estop(self, msg: EStop) -> None:

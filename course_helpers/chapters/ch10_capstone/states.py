@@ -1,4 +1,9 @@
-"""The state board: every robot node's latched ``~/_state``, collected into a table."""
+"""The state board: every robot node's latched ``~/_state``, collected into a table.
+
+:func:`state_graph` is the board's own part of the ROS graph: the ``~/_state`` topics are
+hidden (leading underscore), so the usual graph view leaves them, and the board's
+connections, out.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from course_helpers.chapters.ch10_capstone.channels import LATCHED_QOS
+from course_helpers.viz.snapshot import GraphSnapshot, graph_snapshot
 
 
 class StateBoard(Node):
@@ -71,3 +77,23 @@ def collect_states(rt, board: StateBoard, nodes: list[str], until: Callable[[dic
 
     rt.wait_until(ready, timeout, f"the states of {', '.join(nodes)}")
     return {n: board.states[n] for n in sorted(nodes)}
+
+
+def state_graph(rt, board: StateBoard) -> GraphSnapshot:
+    """The graph of ``board`` alone: the nodes publishing the ``~/_state`` topics it reads, those
+    (hidden) topics, and the board. Draw it with ``draw_graph(snapshot=state_graph(rt, board))``.
+
+    Returns: a :class:`~course_helpers.viz.snapshot.GraphSnapshot` holding only those edges.
+    """
+    full = graph_snapshot(rt, include_hidden=True)
+    watched = set(board.subscriptions_by_topic)
+
+    def topic_of(edge) -> str:
+        return edge.target if edge.role == "publisher" else edge.source
+
+    edges = [e for e in full.edges if topic_of(e) in watched]
+    nodes = {e.source for e in edges if e.role == "publisher"} | {e.target for e in edges
+                                                                    if e.role == "subscriber"}
+    return GraphSnapshot(domain_id=full.domain_id, nodes=sorted(nodes),
+                         topics={t: full.topics[t] for t in sorted({topic_of(e) for e in edges})},
+                         edges=edges, include_hidden=True)
