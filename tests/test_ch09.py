@@ -14,10 +14,12 @@ from course_helpers.chapters.ch09_packages import (
     build_interface_package,
     create_interface_package,
     interface_env,
+    kernel_prefix,
     load_interfaces,
     running_processes,
     stop_process,
 )
+from course_helpers.chapters.ch09_packages.progress import BuildSteps, short_line
 from course_helpers.checks.ch09_packages import check_package
 from course_helpers.nodes import Talker
 from course_helpers.solutions.ch09_packages import reference_package
@@ -125,17 +127,54 @@ def test_workspace_rejects_bad_names():
 def test_new_message_is_built_loaded_and_used_across_processes(rt):
     ws = Workspace("msgs_ws")
     try:
-        source = create_interface_package(ws.src, "chapter09_test_msgs",
-                                          messages={"BinLevel": "string bin_id\nfloat32 fill_ratio"})
-        built = build_interface_package(source, ws.root / "install_msgs")
+        definition = "string bin_id\nfloat32 fill_ratio\nstring[] item_ids"
+        source = create_interface_package(ws.src, "chapter09_test_msgs", messages={"BinLevel": definition})
+        lines = []
+        built = build_interface_package(source, ws.root / "install_msgs", progress=lines.append)
+        assert built.rebuilt and lines[-1] == "done"
         module = load_interfaces(built)
         rt.spawn("bin_sensor", MessagePublisher,
                  params={"type_name": "chapter09_test_msgs/msg/BinLevel", "topic": "bins",
-                         "fields": {"bin_id": "A3", "fill_ratio": 0.5}, "name": "bin_sensor"},
+                         "fields": {"bin_id": "A3", "fill_ratio": 0.5, "item_ids": ["w-1", "w-2"]},
+                         "name": "bin_sensor"},
                  env=interface_env(built), wait_for="/bin_sensor")
         got = rt.wait_for_messages("/bins", module.BinLevel, count=2, timeout=5)
         assert [m.bin_id for m in got] == ["A3", "A3"] and got[0].fill_ratio == 0.5
+        assert list(got[0].item_ids) == ["w-1", "w-2"]  # the array field crossed the process boundary
         assert load_interfaces(built) is module  # loading again is a no-op
+        # Running the notebook again: the same definitions in a new workspace are not built twice.
+        again = create_interface_package(ws.root / "src_again", "chapter09_test_msgs",
+                                         messages={"BinLevel": definition})
+        lines.clear()
+        second = build_interface_package(again, ws.root / "install_msgs", progress=lines.append)
+        assert not second.rebuilt and "up to date" in lines[1] and lines[-1] == "done"
+        assert second.seconds < built.seconds
     finally:
         rt.stop_child("bin_sensor")
         ws.cleanup()
+
+
+def test_build_steps_record_what_each_step_took():
+    steps = BuildSteps("rosidl")
+    assert steps.text() == "rosidl: running"
+    for line in ("configure ... (log: /tmp/ws_x/build_interfaces/pkg/build.log)", "build ...", "install ..."):
+        steps.add(line)
+    steps.add("done")
+    lines = steps.text().splitlines()
+    assert lines[0].startswith("rosidl: succeeded in ") and lines[0].endswith(" s")
+    assert [line.split(" s  ", 1)[1] for line in lines[1:]] == [
+        "configure ... (log: .../build.log)", "build ...", "install ..."]
+    assert "<table>" in steps.html() and "#2e7d32" in steps.html()
+    failed = BuildSteps("colcon build")
+    failed.add("$ colcon build")
+    failed.add("FAILED")
+    assert failed.headline().startswith("colcon build: FAILED after")
+    assert short_line("x" * 200).endswith("...") and len(short_line("x" * 200)) == 90
+
+
+def test_kernel_prefix_lasts_for_the_process():
+    first = kernel_prefix("warehouse_msgs")
+    assert first == kernel_prefix("warehouse_msgs") and first.name == "install"
+    assert first.parent.name == "warehouse_msgs" and first.parent.parent.is_dir()
+    with pytest.raises(CourseError, match="REP 144"):
+        kernel_prefix("Bad-Name")
