@@ -166,3 +166,36 @@ def test_invalid_topic_names_are_named(name):
 
     with pytest.raises(CourseError, match=f"invalid topic name {name!r}"):
         check_topic_name(name)
+
+
+ORPHAN_LAUNCHER = """
+import os, signal, subprocess, sys, time
+signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})  # so the kernel-death signal is lost
+env = dict(os.environ, COURSE_PARENT_PID=str(os.getpid()))
+child = subprocess.Popen([sys.executable, '-m', 'course_helpers.core.child', 'run',
+                          'course_helpers.nodes.chatter:Talker', '{}'], env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+print(child.pid, flush=True)
+time.sleep(4)  # the child builds its talker and serves it
+os._exit(0)  # the "kernel" vanishes without a clean-up
+"""
+
+
+def test_a_child_whose_kernel_vanished_exits_even_if_the_death_signal_is_lost():
+    import subprocess
+    import sys
+
+    import psutil
+
+    out = subprocess.run([sys.executable, "-c", ORPHAN_LAUNCHER], capture_output=True, text=True,
+                         timeout=60).stdout
+    pid = int(out.split()[0])
+
+    def gone() -> bool:
+        try:
+            return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+        except psutil.NoSuchProcess:
+            return True
+
+    # the watchdog notices within half a second; the clean-up takes a moment more
+    wait_until(gone, 15, f"the orphaned child {pid} to exit")

@@ -32,3 +32,8 @@ def test_the_passing_report_runs_the_reference_against_real_nodes(rt, capsys):
 def test_without_solutions_the_passing_report_says_why(capsys):
     assert show_passing_report(lambda cls: None, "ch99_missing", "Anything") is None
     assert "not available here" in capsys.readouterr().out
+
+
+def test_a_solution_that_is_a_value_is_refused_with_a_reason():
+    with pytest.raises(CourseError, match="is a value, not a function or class"):
+        solution_source("ch04_services", "__name__")

@@ -1,10 +1,11 @@
 """Build a ROS 2 interface package (.msg/.srv/.action) with the real rosidl toolchain.
 
-Chapters 04-06 import the course's own interfaces (``course_interfaces``:
-``AddTwoInts``, ``Fibonacci``, ``Waypoints``, ``ExperimentSample`` and the
-capstone's ``Navigate``, ``PickItem``, ``EStop``); chapter 09 teaches how such a
-package is built and calls :func:`build_package` on a student's own package in
-a temporary directory.
+The chapters import the course's own interfaces (``course_interfaces``): 04
+``AddTwoInts``, 05 ``Fibonacci`` and ``Navigate``, 08b ``ExperimentSample``, 09
+``Waypoints``, 10 the capstone's ``PickItem`` and ``EStop``. Set-up also builds a
+stand-in for ``example_interfaces`` so textbook code runs as written. Chapter 09
+teaches how such a package is built and calls :func:`build_package` on a
+student's own package in a temporary directory.
 
 The toolchain is the one from the ROS 2 Jazzy PyPI wheels installed in this
 virtual environment: CMake + ament_cmake + rosidl_default_generators, with

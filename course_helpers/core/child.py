@@ -11,7 +11,9 @@
     Becomes PROGRAM (same process ID), after arranging to die with the kernel.
 
 Either way the child asks Linux for SIGTERM when the kernel dies, and exits at once if
-the kernel is already gone.
+the kernel is already gone. A ``run`` child also watches for the kernel going away (in case
+that signal is lost, as it can be when the kernel ends with ``os._exit``), and gives its
+clean-up :data:`CLEANUP_S` seconds before it simply exits, so no orphan keeps running.
 """
 
 from __future__ import annotations
@@ -23,11 +25,15 @@ import os
 import signal
 import sys
 import threading
+import time
 import traceback
 
 from course_helpers.core.channel import CHANNEL_ENV, report
+from course_helpers.core.waiting import poll_until
 
 PR_SET_PDEATHSIG = 1
+CLEANUP_S = 10.0  # how long stopping may take once asked (or orphaned) before the process just exits
+PARENT_CHECK_S = 0.5  # how often the watchdog looks for the kernel
 
 
 def die_with_parent() -> None:
@@ -67,6 +73,22 @@ class _StopSignal:
             raise SystemExit(0)  # stopped before (or instead of) serving nodes: end at once
 
 
+def _watch_parent(stop: _StopSignal) -> None:
+    """Stop serving when the kernel is gone; end the process if the clean-up then hangs."""
+    expected = os.environ.get("COURSE_PARENT_PID")
+
+    def orphaned() -> bool:
+        return expected is not None and os.getppid() != int(expected)
+
+    def watch() -> None:
+        poll_until(lambda: stop.event.is_set() or orphaned(), float("inf"), period=PARENT_CHECK_S)
+        stop.event.set()
+        time.sleep(CLEANUP_S)  # the main thread exits long before this, unless its clean-up hangs
+        os._exit(0)  # leave no orphan behind
+
+    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
+
+
 def run(spec: str, kwargs: dict) -> int:
     """Run a target in this process's course runtime; the process's exit code."""
     from rclpy.node import Node
@@ -74,6 +96,7 @@ def run(spec: str, kwargs: dict) -> int:
     from course_helpers.core.runtime import get_runtime
 
     stop = _StopSignal()
+    _watch_parent(stop)
     target = load_target(spec)
     rt = get_runtime()
     try:

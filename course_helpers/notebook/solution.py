@@ -35,7 +35,11 @@ def solution_source(module: str, name: str) -> str:
         if not hasattr(obj, part):
             raise CourseError(f"solutions/{module}.py has no {name!r}")
         obj = getattr(obj, part)
-    return inspect.getsource(obj)
+    try:
+        return inspect.getsource(obj)
+    except TypeError:
+        raise CourseError(f"solutions/{module}.py: {name!r} is a value, not a function or class; "
+                          "name a function or class whose code can be shown") from None
 
 
 def show_solution(module: str, name: str, label: str = "Show the reference solution"):
