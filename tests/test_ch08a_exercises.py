@@ -80,6 +80,15 @@ class StubbornHeartbeat(reference.SwitchableHeartbeat):
         pass
 
 
+class SeldomHeartbeat(reference.SwitchableHeartbeat):
+    """Asserts every 2 s, four times the 0.5 s lease it promises."""
+
+    def __init__(self):
+        super().__init__()
+        self.destroy_timer(self.timer)
+        self.timer = self.create_timer(2.0, self.beat)  # period in seconds
+
+
 class AutomaticHeartbeat(Node):
     """Publishes with AUTOMATIC liveliness: the process, not the writer, keeps it alive."""
 
@@ -112,6 +121,11 @@ def test_heartbeat_checker_rejects_a_heartbeat_that_ignores_the_command_and_a_de
     assert "monitor: publishes 'lost' within 2 s after the heartbeat stopped" in failed, report.summary()
     assert "monitor: publishes 'alive' when the heartbeat is back" in failed, report.summary()
     assert "heartbeat: a monitor sees it alive" not in failed  # the parts that are right pass
+
+
+def test_heartbeat_checker_rejects_a_heartbeat_that_asserts_too_seldom(rt):
+    report = check_heartbeat(SeldomHeartbeat, reference.HeartbeatMonitor, rt)
+    assert _failed(report) == ["heartbeat: still alive two leases later"], report.summary()
 
 
 def test_heartbeat_checker_rejects_automatic_liveliness(rt):

@@ -404,18 +404,28 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
                           problem,
                           hint="self.create_subscription(Bool, 'heartbeat/enable', self.on_enable, 10)"):
             return
-        seen = {"alive": 0}
+        seen = {"alive": 0, "lost": 0}  # writers alive now; times one ran out of its lease
+
+        def on_liveliness(status) -> None:
+            seen["alive"] = status.alive_count
+            seen["lost"] += max(0, status.not_alive_count_change)
+
         probe.create_subscription(
             String, "/heartbeat", lambda _m: None,
             qos_from_dict({"depth": 1, "liveliness": "manual_by_topic", "lease_s": HEARTBEAT_MAX_LEASE_S}),
-            event_callbacks=SubscriptionEventCallbacks(liveliness=lambda s: seen.update(alive=s.alive_count)))
+            event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness))
         enable = probe.create_publisher(Bool, "/heartbeat/enable", 10)
         hint = "A timer that calls self.publisher.assert_liveliness() well within every lease."
         if not report.add("heartbeat: a monitor sees it alive", poll_until(lambda: seen["alive"] == 1, 5.0),
                           hint=hint):
             return
-        time.sleep(2 * lease)  # two leases: a one-off assertion would have run out
-        if not report.add("heartbeat: still alive two leases later", seen["alive"] == 1, hint=hint):
+        lost_before = seen["lost"]
+        time.sleep(2 * lease)  # two leases: assertions that stopped, or come too seldom, have run out
+        # a loaded machine may miss one lease and recover: one lapse is forgiven, not a pattern
+        lapses = seen["lost"] - lost_before
+        still = poll_until(lambda: seen["alive"] == 1, 0.5) and lapses <= 1
+        if not report.add("heartbeat: still alive two leases later", still,
+                          f"its lease ran out {lapses} time(s)" if lapses else "", hint=hint):
             return
         poll_until(lambda: enable.get_subscription_count() > 0, 3.0)
         enable.publish(Bool(data=False))
