@@ -89,3 +89,10 @@ def conveyor_talks(rt, topic='/line1/items', timeout=5.0):
         return False
     heard = rt.wait_for_messages(topic, 'std_msgs/msg/String', count=3, timeout=timeout)
     return all(msg.data.startswith('item ') for msg in heard)
+
+
+class ConveyorLaunchTest:
+    """Exercise 06b's two halves together, as a launch test keeps them: the description and the proof."""
+
+    describe = staticmethod(conveyor_launch)
+    proves_they_talk = staticmethod(conveyor_talks)
