@@ -165,7 +165,7 @@ def _submission(folder: Path, assignment: str) -> Path | None:
 def grade_one(course_dir: Path, assignment: str, student: str, sub: Path, out: Path, build: Path,
               timeout: int, wall_clock: int, max_points: dict[str, float]):
     """Autograde one submission in a process of its own; sweep afterwards; return its results and log."""
-    from course_helpers import CourseError
+    from course_helpers import WaitTimeout
     from course_helpers.core import processes
 
     target = course_dir / "submitted" / student / assignment
@@ -173,19 +173,25 @@ def grade_one(course_dir: Path, assignment: str, student: str, sub: Path, out: P
     shutil.copytree(sub, target, ignore=shutil.ignore_patterns(".ipynb_checkpoints", "__pycache__"))
     run = isolation.Run(student)
     env = isolation.student_env(run, str(build))
-    argv = [sys.executable, str(AUTOGRADE_ONE), str(course_dir), assignment, student,
-            "--timeout", str(timeout), "--record", run.record]
+    argv = processes.program_argv(sys.executable, str(AUTOGRADE_ONE), str(course_dir), assignment, student,
+                                  "--timeout", str(timeout), "--record", run.record)
     failure = ""
     started = time.monotonic()
-    (out / "logs").mkdir(parents=True, exist_ok=True)
-    with open(out / "logs" / f"{student}.log", "w", encoding="utf-8") as log:
-        try:
-            code, output = processes.run(argv, env=env, cwd=str(course_dir), timeout=wall_clock, log=log)
-            if code != 0:
-                failure = "nbgrader could not grade it: " + " / ".join(output.strip().splitlines()[-3:])
-        except CourseError:
-            failure = f"grading took longer than the wall clock of {wall_clock} s and was stopped"
+    # Its output goes to a file, not a pipe: a process the student's code detached may hold the
+    # file open for as long as it likes without keeping the grader waiting.
+    child = processes.start(f"grade-{student}", argv, group="grading", env=env, cwd=str(course_dir),
+                            channel=False)
+    try:
+        code = child.wait_for_exit(wall_clock, f"the grading of {student}")
+        if code != 0:
+            failure = "nbgrader could not grade it: " + " / ".join(child.log().strip().splitlines()[-3:])
+    except WaitTimeout:
+        child.kill()
+        failure = f"grading took longer than the wall clock of {wall_clock} s and was stopped"
     seconds = time.monotonic() - started
+    (out / "logs").mkdir(parents=True, exist_ok=True)
+    (out / "logs" / f"{student}.log").write_text(child.log(), encoding="utf-8")
+    child.stop()
     left = isolation.sweep(run.marker)
     record = json.loads(Path(run.record).read_text()) if Path(run.record).exists() else {}
     domains = record.get("domains", [])

@@ -36,7 +36,8 @@ from nbgrader.preprocessors import Execute
 from traitlets import Integer, Unicode
 
 LOCK_FILE = re.compile(r"domain-(\d+)\.lock$")
-COURSE_CHILD = "course_helpers.core.child"
+COURSE_CHILD = "course_helpers.core.child"  # how the course's process layer starts a child
+PARENT_ENV = "COURSE_PARENT_PID"  # set by that layer for a child that must die with the kernel
 
 
 def _error(ename: str, evalue: str) -> dict:
@@ -162,8 +163,9 @@ class GuardedExecute(Execute):
                 proc = psutil.Process(pid)
                 if proc.create_time() != started or pid == kernel or proc.status() == psutil.STATUS_ZOMBIE:
                     continue
-                if proc.ppid() == kernel and COURSE_CHILD in " ".join(proc.cmdline()):
-                    continue  # a node the course started: it stops with the kernel
+                if proc.ppid() == kernel and (proc.environ().get(PARENT_ENV) == str(kernel)
+                                              or COURSE_CHILD in " ".join(proc.cmdline())):
+                    continue  # started by the course's process layer: it stops with the kernel
                 runaway.append(proc)
             except psutil.Error:
                 continue
