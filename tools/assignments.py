@@ -100,9 +100,14 @@ def validate(chapter, course_dir: Path, build: Path, timeout: int) -> dict[str, 
             else:
                 os.environ[key] = value
     points, problems = {}, []
-    for cell in nb.cells:
+    for index, cell in enumerate(nb.cells):
         meta = cell.get("metadata", {}).get("nbgrader", {})
         if not meta.get("grade"):
+            # the notebook itself must run as cleanly as the course's: a cell left out of the
+            # assignment must not have defined something a later cell needs
+            errors = [o for o in cell.get("outputs", []) if o.get("output_type") == "error"]
+            if errors and "raises-exception" not in cell.get("metadata", {}).get("tags", []):
+                problems.append(f"cell {index} raised {errors[0]['ename']}: {errors[0]['evalue']}"[:300])
             continue
         counted = _criteria(cell)
         errors = [o for o in cell.get("outputs", []) if o.get("output_type") == "error"]
@@ -113,7 +118,7 @@ def validate(chapter, course_dir: Path, build: Path, timeout: int) -> dict[str, 
         else:
             points[meta["grade_id"]] = counted[1]
     if problems:
-        raise SystemExit(f"{chapter.name}: the reference solutions do not pass their checkers: "
+        raise ValueError(f"{chapter.name}: the instructor source does not run cleanly: "
                          + "; ".join(problems))
     return points
 
@@ -122,13 +127,20 @@ def release(chapters: list[str] | None, course_dir: Path, timeout: int) -> None:
     build = student_build.build(course_dir / "student_build")
     print(student_build.check_imports(build).strip())
     made = make_sources(chapters, course_dir)
-    points = {}
+    points, failed = {}, []
     for chapter in made:
         started = time.monotonic()
-        points[chapter.name] = validate(chapter, course_dir, build, timeout)
+        try:
+            points[chapter.name] = validate(chapter, course_dir, build, timeout)
+        except ValueError as exc:
+            failed.append(str(exc))
+            print(f"NOT RELEASED: {exc}")
+            continue
         print(f"{chapter.name}: reference solutions pass, points {points[chapter.name]} "
               f"({time.monotonic() - started:.0f} s)")
-    make_sources([c.name for c in made], course_dir, points)
+    made = [c for c in made if c.name in points]
+    if made:
+        make_sources([c.name for c in made], course_dir, points)
     api = _api(course_dir)
     for chapter in made:
         result = api.generate_assignment(chapter.name, force=True, create=True)
@@ -139,6 +151,8 @@ def release(chapters: list[str] | None, course_dir: Path, timeout: int) -> None:
     if leaks:
         raise SystemExit("reference solutions found in the release:\n  " + "\n  ".join(leaks))
     print(f"no reference solution in {course_dir / 'release'} or {build}")
+    if failed:
+        raise SystemExit("not released:\n  " + "\n  ".join(failed))
 
 
 # ---------------------------------------------------------------------- grading
@@ -169,8 +183,9 @@ def grade_one(course_dir: Path, assignment: str, student: str, sub: Path, out: P
     from course_helpers.core import processes
 
     target = course_dir / "submitted" / student / assignment
-    shutil.rmtree(target, ignore_errors=True)
-    shutil.copytree(sub, target, ignore=shutil.ignore_patterns(".ipynb_checkpoints", "__pycache__"))
+    if sub.resolve() != target.resolve():  # `nbgrader collect` puts them in place already
+        shutil.rmtree(target, ignore_errors=True)
+        shutil.copytree(sub, target, ignore=shutil.ignore_patterns(".ipynb_checkpoints", "__pycache__"))
     run = isolation.Run(student)
     env = isolation.student_env(run, str(build))
     argv = processes.program_argv(sys.executable, str(AUTOGRADE_ONE), str(course_dir), assignment, student,

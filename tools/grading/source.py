@@ -156,6 +156,14 @@ def find_exercises(name: str, notebook: dict) -> Chapter:
         exercise = Exercise(f"ex{len(chapter.exercises) + 1}_{names[0]}", code_index, i, call.func.id,
                             checkers[call.func.id], names)
         exercise.solution, exercise.skipped = solution_code(exercise.module, names)
+        if exercise.solution:
+            # a value the student assigns (burst_qos = QoSProfile(...)) whose reference is a function
+            # of the same name: the reference value is what that function returns
+            assigned = [n for n in trees[code_index].body if isinstance(n, (ast.Assign, ast.AnnAssign))]
+            values = _defined(ast.Module(body=assigned, type_ignores=[]))
+            for name in names:
+                if name in values and f"def {name}(" in exercise.solution:
+                    exercise.solution += f"\n\n{name} = {name}()\n"
         chapter.exercises.append(exercise)
     for exercise in chapter.exercises:
         if exercise.skipped and len(exercise.names) == 1:

@@ -34,13 +34,19 @@ sys.meta_path[:] = [f for f in sys.meta_path
 
 
 def build(dest: Path) -> Path:
-    """Copy ``course_helpers`` without ``solutions/`` to ``dest/course_helpers``; return ``dest``
-    (the folder to put on ``PYTHONPATH``)."""
+    """Copy ``course_helpers`` without ``solutions/`` to ``dest/course_helpers`` and the interface
+    packages to ``dest/interfaces``; return ``dest`` (the folder to put on ``PYTHONPATH``)."""
     target = dest / "course_helpers"
     if target.exists():
         shutil.rmtree(target)
     dest.mkdir(parents=True, exist_ok=True)
     shutil.copytree(PACKAGE, target, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "solutions"))
+    # the interface packages live beside the package (core.build_interfaces.INTERFACES_DIR):
+    # chapter 09 reads and builds them
+    if (dest / "interfaces").exists():
+        shutil.rmtree(dest / "interfaces")
+    shutil.copytree(REPO / "interfaces", dest / "interfaces",
+                    ignore=shutil.ignore_patterns("build", "install", "log"))
     (dest / "sitecustomize.py").write_text(SITECUSTOMIZE, encoding="utf-8")
     return dest
 
