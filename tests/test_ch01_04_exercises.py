@@ -60,7 +60,8 @@ def test_watchdog_checker_rejects_waiting_for_the_graph(rt):
     report = check_silence_watchdog(GraphWatchdog, rt)
     assert not report.passed
     failed = [c.name for c in report.criteria if not c.passed]
-    assert failed == ["reports wd_talker_1 within 3 s of its crash"], report.summary()
+    # (a graph watchdog may also raise a false alarm while the graph is catching up)
+    assert "reports wd_talker_1 within 3 s of its crash" in failed, report.summary()
 
 
 def test_watchdog_checker_rejects_repeated_alarms(rt):

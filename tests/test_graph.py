@@ -75,7 +75,7 @@ def settle(rt, include_hidden: bool) -> GraphSnapshot:
         return snapshot_edges(found["snap"]) == found["live"] and EXPECTED <= found["live"]
 
     try:
-        rt.wait_until(agree, 10, "the graph snapshot to match the live graph")
+        rt.wait_until(agree, 30, "the graph snapshot to match the live graph")
     except Exception:
         snap_only = snapshot_edges(found["snap"]) - found["live"]
         live_only = found["live"] - snapshot_edges(found["snap"])
