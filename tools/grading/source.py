@@ -12,7 +12,8 @@ generated notebook
 * the checker cell becomes a locked, autograded test cell worth one point per criterion the
   reference solution passes. It prints the report and ends with the score, a number nbgrader
   reads as partial credit; only a fully passed report earns every point;
-* cells that import the reference solutions or show them (``show_solution``) are left out,
+* cells that import the reference solutions, show them (``show_solution``) or run the checker on
+  them (``show_passing_report``) are left out,
   with a short markdown cell right before that introduces them ("compare with the solution").
 """
 
@@ -103,7 +104,7 @@ def _checker_imports(tree: ast.Module) -> dict[str, str]:
 
 
 def _shows_solutions(code: str, tree: ast.Module | None, solution_aliases: set[str]) -> bool:
-    if SOLUTIONS_PACKAGE in code or "show_solution(" in code:
+    if SOLUTIONS_PACKAGE in code or "show_solution(" in code or "show_passing_report(" in code:
         return True
     if tree is None:
         return False
