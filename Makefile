@@ -16,7 +16,7 @@ ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks lint bench execute book test-pythons clean
+.PHONY: setup lab test unit notebooks lint bench execute book test-pythons release grade clean
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -63,6 +63,17 @@ bench: setup
 # Re-execute the notebooks in place so the committed outputs are fresh (maintainers).
 execute: setup
 	$(PY) tools/execute_notebooks.py notebooks/*.ipynb
+
+# Graded assignments with nbgrader (docs/assignments.md): the student release of some chapters
+# (CHAPTERS=04 or every chapter with exercises), then the grading of a folder of submissions.
+CHAPTERS ?=
+release: setup
+	$(PY) tools/assignments.py release $(CHAPTERS)
+
+grade: setup
+	@test -n "$(SUBMISSIONS)" -a -n "$(ASSIGNMENT)" || \
+	    { echo "usage: make grade SUBMISSIONS=folder ASSIGNMENT=04_services"; exit 2; }
+	$(PY) tools/assignments.py grade $(SUBMISSIONS) --assignment $(ASSIGNMENT)
 
 # Set-up and strict nbval from a fresh clone on every Python 3.10-3.13 found (PYTHON310=... or PATH).
 test-pythons:
