@@ -80,6 +80,8 @@ def _answers(url: str) -> bool:
 
 
 def test_every_chapter_page_has_its_title_images_and_working_links(site):
+    """One test for the whole site, so it is built once (two workers would rebuild it under each other)."""
+    _site_shows_static_records_not_widget_reprs()
     from playwright.sync_api import sync_playwright
 
     os.makedirs(ARTIFACTS, exist_ok=True)
@@ -118,7 +120,7 @@ def test_every_chapter_page_has_its_title_images_and_working_links(site):
     assert len(checked_links) > len(CHAPTERS)  # the navigation links every chapter
 
 
-def test_the_site_shows_static_records_not_widget_reprs(site):
+def _site_shows_static_records_not_widget_reprs():
     for name in CHAPTERS:
         with open(os.path.join(SITE, f"{name}.html"), encoding="utf-8") as handle:
             text = handle.read()

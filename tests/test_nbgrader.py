@@ -236,8 +236,8 @@ def test_nothing_of_a_run_is_left(graded):
         assert not any(isolation.domain_free(d) is False and d in entry["domains"]
                        for d in entry["domains_still_held"])
     assert any(e["kind"] == "kernel restarted" for e in log["dave"]["events"])
-    # a process being killed by the sweep may take a moment to go
-    assert poll_until(lambda: _alive_runs() == [], 15), \
+    # on a loaded machine a process of the last run can take a while to go (seen: under a minute)
+    assert poll_until(lambda: _alive_runs() == [], 90), \
         f"processes of a grading run are still alive: {_alive_runs()}"
     seconds = {s: e["seconds"] for s, e in log.items()}
     print(f"grading seconds per submission: {seconds}")
@@ -257,6 +257,6 @@ def test_a_run_past_the_wall_clock_scores_zero_and_is_swept(course, tmp_path_fac
     entry = log["frank"]
     assert entry["domains"] and entry["domains_still_held"] == [], entry
     assert entry["tmp_removed"]
-    # a process being killed by the sweep may take a moment to go
-    assert poll_until(lambda: _alive_runs() == [], 15), \
+    # on a loaded machine a process of the last run can take a while to go (seen: under a minute)
+    assert poll_until(lambda: _alive_runs() == [], 90), \
         f"processes of a grading run are still alive: {_alive_runs()}"

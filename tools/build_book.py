@@ -9,6 +9,7 @@ builds from there. Open build/book/html/index.html, or serve the folder:
 
 from __future__ import annotations
 
+import fcntl
 import glob
 import os
 import shutil
@@ -34,6 +35,10 @@ def main() -> int:
     from sphinx.cmd.build import build_main
 
     started = time.monotonic()
+    os.makedirs(os.path.join(REPO, "build"), exist_ok=True)
+    # one build at a time: two builds would delete each other's staged sources
+    lock = open(os.path.join(REPO, "build", ".book.lock"), "w")  # noqa: SIM115 (held until exit)
+    fcntl.flock(lock, fcntl.LOCK_EX)
     chapters = stage()
     print(f"building the site from {len(chapters)} notebooks ...", flush=True)
     shutil.rmtree(os.path.dirname(OUTPUT), ignore_errors=True)
