@@ -9,6 +9,8 @@ WORK   ?= $(HOME)/ros2-course-work
 # Parallel test workers. The suite mostly waits (discovery, timers, child processes), so three
 # workers keep a 2-core machine busy; each worker has its own ROS domain. `make test JOBS=1` runs
 # one at a time.
+# Tests are dealt out file by file (--dist loadfile): a file's tests share module fixtures (the
+# nbgrader course, the built site); pytest 9 ignores pytest-xdist's xdist_group marks.
 JOBS   ?= 3
 # Jupyter refuses to run as root (containers, CI machines) unless told it is deliberate.
 ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
@@ -43,11 +45,11 @@ lab: setup
 	$(VENV)/bin/jupyter lab --notebook-dir=$(WORK) --port=$(PORT) $(ROOT_FLAG)
 
 test: setup
-	$(PY) -m pytest tests -q -n $(JOBS) --dist loadgroup
+	$(PY) -m pytest tests -q -n $(JOBS) --dist loadfile
 	$(PY) -m pytest $(NBVAL) -n $(JOBS) --dist loadfile notebooks -q
 
 unit: setup
-	$(PY) -m pytest tests -q -n $(JOBS) --dist loadgroup
+	$(PY) -m pytest tests -q -n $(JOBS) --dist loadfile
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
