@@ -5,8 +5,8 @@ ones (the first pass). This file adds a second pass to each notebook: every cell
 kernel, checked only for errors, then a last item that asserts the second run left no duplicate
 nodes and one executor thread. So each notebook runs exactly twice, and re-running a notebook
 (what students do all the time) is tested where the notebook is tested. Set
-``COURSE_NBVAL_RERUN=0`` to run the first pass only. Every cell of a notebook is in one
-pytest-xdist group, so ``--dist loadgroup`` (or ``loadfile``) keeps a notebook on one worker.
+``COURSE_NBVAL_RERUN=0`` to run the first pass only. ``--dist loadfile`` keeps a notebook on one
+worker (the cells also carry an xdist_group mark, which pytest 9 no longer lets pytest-xdist use).
 """
 
 from __future__ import annotations
