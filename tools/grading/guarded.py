@@ -35,6 +35,8 @@ from nbformat.v4 import new_output
 from nbgrader.preprocessors import Execute
 from traitlets import Integer, Unicode
 
+from grading.isolation import kill_all
+
 LOCK_FILE = re.compile(r"domain-(\d+)\.lock$")
 COURSE_CHILD = "course_helpers.core.child"  # how the course's process layer starts a child
 PARENT_ENV = "COURSE_PARENT_PID"  # set by that layer for a child that must die with the kernel
@@ -42,13 +44,6 @@ PARENT_ENV = "COURSE_PARENT_PID"  # set by that layer for a child that must die 
 
 def _error(ename: str, evalue: str) -> dict:
     return new_output("error", ename=ename, evalue=evalue, traceback=[f"{ename}: {evalue}"])
-
-
-def _describe(proc: psutil.Process) -> str:
-    try:
-        return f"pid {proc.pid}: {' '.join(proc.cmdline())[:120] or proc.name()}"
-    except psutil.Error:
-        return f"pid {proc.pid}"
 
 
 class GuardedExecute(Execute):
@@ -169,14 +164,7 @@ class GuardedExecute(Execute):
                 runaway.append(proc)
             except psutil.Error:
                 continue
-        described = [_describe(p) for p in runaway]
-        for proc in runaway:
-            try:
-                proc.kill()
-            except psutil.Error:
-                pass
-        psutil.wait_procs(runaway, timeout=5)
-        return described
+        return kill_all(runaway)
 
     def _revive(self, index: int) -> None:
         """Restart the dead kernel and run the cells before ``index`` again (not the test cells)."""

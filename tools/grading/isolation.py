@@ -75,6 +75,18 @@ def _describe(proc: psutil.Process) -> str:
         return f"pid {proc.pid}"
 
 
+def kill_all(procs: list[psutil.Process]) -> list[str]:
+    """Kill ``procs`` at once and wait up to 5 s for them to go; return their descriptions."""
+    described = [_describe(p) for p in procs]
+    for proc in procs:
+        try:
+            proc.kill()
+        except psutil.Error:
+            pass
+    psutil.wait_procs(procs, timeout=5)
+    return described
+
+
 def _carries(proc: psutil.Process, marker: str) -> bool:
     try:
         return proc.environ().get(MARKER) == marker
@@ -101,13 +113,7 @@ def leftovers(marker: str) -> list[psutil.Process]:
 def sweep(marker: str) -> list[str]:
     """Kill what a finished run left running; return their descriptions (empty when nothing was left)."""
     procs = leftovers(marker)
-    described = [_describe(p) for p in procs]
-    for proc in procs:
-        try:
-            proc.kill()
-        except psutil.Error:
-            pass
-    psutil.wait_procs(procs, timeout=5)
+    described = kill_all(procs)
     for child in psutil.Process().children():  # reap re-parented zombies
         try:
             if child.status() == psutil.STATUS_ZOMBIE:
