@@ -6,19 +6,21 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.course-installed
 PORT   ?= 8888
 WORK   ?= $(HOME)/ros2-course-work
-# Parallel test workers. The suite mostly waits (discovery, timers, child processes), so three
+# Parallel test workers. The suite mostly waits (discovery, timers, child processes), so four
 # workers keep a 2-core machine busy; each worker has its own ROS domain. `make test JOBS=1` runs
 # one at a time.
-# Tests are dealt out file by file (--dist loadfile): a file's tests share module fixtures (the
-# nbgrader course, the built site); pytest 9 ignores pytest-xdist's xdist_group marks.
-JOBS   ?= 3
+# Files are dealt out whole (--dist loadfile: a notebook's cells share one kernel, a test file's
+# tests their module fixtures), longest first by the seconds in tests/durations.json
+# (conftest.py; --no-loadscope-reorder keeps that order instead of xdist's count of tests).
+JOBS   ?= 4
+XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
 # Jupyter refuses to run as root (containers, CI machines) unless told it is deliberate.
 ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
 # The slowest honest cell takes about 25 s on a loaded 2-core machine.
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks lint bench execute book test-pythons release grade clean
+.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade clean
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -45,15 +47,20 @@ lab: setup
 	$(VENV)/bin/jupyter lab --notebook-dir=$(WORK) --port=$(PORT) $(ROOT_FLAG)
 
 test: setup
-	$(PY) -m pytest tests -q -n $(JOBS) --dist loadfile
-	$(PY) -m pytest $(NBVAL) -n $(JOBS) --dist loadfile notebooks -q
+	$(PY) -m pytest tests -q $(XDIST)
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q
 
 unit: setup
-	$(PY) -m pytest tests -q -n $(JOBS) --dist loadfile
+	$(PY) -m pytest tests -q $(XDIST)
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
-	$(PY) -m pytest $(NBVAL) -n $(JOBS) --dist loadfile notebooks -q
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q
+
+# Measure both stages and record each file's seconds in tests/durations.json (the order above).
+durations: setup
+	$(PY) -m pytest tests -q $(XDIST) --record-durations
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q --record-durations
 
 lint: setup
 	$(VENV)/bin/ruff check course_helpers tests benchmarks tools notebooks book classroom

@@ -40,8 +40,3 @@ def run_python(code: str, timeout: float = 60, env: dict | None = None):
         timeout=timeout, env=full_env, cwd=REPO,
     )
 
-
-def pytest_collection_modifyitems(session, config, items):
-    """Start the slow tests (real builds, long transport runs) first, so that parallel workers
-    finish together instead of one worker starting a long build at the end."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)

@@ -1,0 +1,157 @@
+"""What the two nbgrader test files share: chapter 04 released into a temporary course, the
+misbehaving answers, handing in and grading with ``tools/assignments.py``.
+
+The students are split over ``test_nbgrader.py`` and ``test_nbgrader_misbehaving.py`` so that two
+parallel workers grade them at the same time; each file releases its own course.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import psutil
+
+from course_helpers.core import processes
+from course_helpers.core.waiting import poll_until
+
+from .conftest import REPO
+
+TOOLS = Path(REPO) / "tools"
+sys.path.insert(0, str(TOOLS))
+
+from grading import isolation, source, student_build  # noqa: E402, F401 (used by the test files)
+from grading.source import BEGIN, END  # noqa: E402
+
+CHAPTER = "04_services"
+EX1, EX2 = "ex1_BatteryMonitor", "ex2_SumRelay"
+CELL_TIMEOUT_S = 40  # the slowest cell of chapter 04 takes about 10 s
+
+HANGS = """
+import time
+
+
+class BatteryMonitor(Node):
+    def __init__(self):
+        super().__init__('battery_monitor')
+        time.sleep(3600)  # waits for something that never comes
+"""
+CRASHES = """
+import os
+import signal
+
+
+class BatteryMonitor(Node):
+    def __init__(self):
+        super().__init__('battery_monitor')
+        os.kill(os.getpid(), signal.SIGKILL)  # the kernel dies
+"""
+FLOODS = """
+class BatteryMonitor(Node):
+    def __init__(self):
+        super().__init__('battery_monitor')
+        for i in range(10**6):
+            print('debug', i, 'x' * 100)
+"""
+RUNAWAY_LINE = "        subprocess.Popen(['sh', '-c', 'sleep 600 &'])  # a detached process nobody stops\n"
+# a daemon of its own session: jupyter_client's kill of the kernel's process group misses it
+LAST_CELL = "import subprocess\n\nsubprocess.Popen(['sh', '-c', 'sleep 700 &'], start_new_session=True)\n"
+EXTRA = "extra cell"  # key of an answer that is a cell the student added at the end
+
+
+def tool(*args: str, timeout: float) -> str:
+    code, output = processes.run([sys.executable, str(TOOLS / "assignments.py"), *args], cwd=REPO,
+                                 timeout=timeout)
+    assert code == 0, output
+    return output
+
+
+def grade_cells(nb: dict) -> dict[str, dict]:
+    return {c["metadata"]["nbgrader"]["grade_id"]: c for c in nb["cells"] if "nbgrader" in c["metadata"]}
+
+
+def solved(source_cell: dict) -> str:
+    """A student's finished exercise: the starting code and the reference, as one cell."""
+    lines = "".join(source_cell["source"]).splitlines()
+    return "\n".join(line for line in lines if line.strip() not in (BEGIN, END)) + "\n"
+
+
+def release_course(tmp_path_factory) -> tuple[Path, str]:
+    """Chapter 04 released into a new course directory; the directory and the tool's output."""
+    course_dir = tmp_path_factory.mktemp("course")
+    output = tool("--course-dir", str(course_dir), "release", "04", timeout=600)
+    return course_dir, output
+
+
+def solutions(course_dir: Path) -> dict[str, str]:
+    cells = grade_cells(json.loads((course_dir / "source" / CHAPTER / f"{CHAPTER}.ipynb").read_text()))
+    return {EX1: solved(cells[EX1]), EX2: solved(cells[EX2])}
+
+
+def hand_in(course_dir: Path, students: dict[str, dict[str, str]], submissions: Path) -> Path:
+    """Write each student's notebook: the release with their answers in the exercise cells."""
+    release = json.loads((course_dir / "release" / CHAPTER / f"{CHAPTER}.ipynb").read_text())
+    for student, answers in students.items():
+        nb = json.loads(json.dumps(release))
+        for grade_id, cell in grade_cells(nb).items():
+            if grade_id in answers:
+                cell["source"] = answers[grade_id]
+        if EXTRA in answers:
+            nb["cells"].append({"cell_type": "code", "execution_count": None, "id": "student-extra",
+                                "metadata": {}, "outputs": [], "source": answers[EXTRA]})
+        folder = submissions / student / CHAPTER
+        folder.mkdir(parents=True)
+        (folder / f"{CHAPTER}.ipynb").write_text(json.dumps(nb, indent=1))
+    return submissions
+
+
+def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int):
+    output = tool("--course-dir", str(course_dir), "grade", str(submissions), "--assignment", CHAPTER,
+                   "--timeout", str(CELL_TIMEOUT_S), "--wall-clock", str(wall_clock), "--out", str(out),
+                   timeout=1000)
+    with open(out / "grades.csv", newline="") as f:
+        rows = {row["student"]: row for row in csv.DictReader(f)}
+    log = {entry["student"]: entry for entry in json.loads((out / "log.json").read_text())}
+    return rows, log, output
+
+
+def alive_runs(markers: set[str]) -> list:
+    """Command lines of processes that carry one of these grading runs' markers (another test
+    file may be grading at the same time: its runs are not ours to judge)."""
+    alive = []
+    for proc in psutil.process_iter():
+        try:
+            if proc.environ().get(isolation.MARKER) in markers:
+                alive.append(proc.cmdline())
+        except psutil.Error:
+            pass
+    return alive
+
+
+def points(rows: dict, student: str, exercise: str) -> float:
+    return float(rows[student][exercise + "_check"])
+
+
+def reason(rows: dict, student: str, exercise: str) -> str:
+    return rows[student][exercise + "_check reason"]
+
+
+def assert_nothing_left(log: dict) -> None:
+    """Every graded kernel held a domain that is free again, its temporary folder is gone, and no
+    process of any grading run is alive."""
+    for student, entry in log.items():
+        assert entry["failure"] == "", entry
+        assert entry["domains"], f"{student}'s kernel held no domain lock"
+        assert entry["domains_still_held"] == [] and entry["tmp_removed"], entry
+    assert_no_process_left(log)
+
+
+def assert_no_process_left(log: dict) -> None:
+    """No process of the runs in this grading log is alive."""
+    markers = {entry["marker"] for entry in log.values()}
+    assert markers, "the log names no grading run"
+    # on a loaded machine a process of the last run can take a while to go (seen: under a minute)
+    assert poll_until(lambda: alive_runs(markers) == [], 90), \
+        f"processes of a grading run are still alive: {alive_runs(markers)}"
