@@ -30,12 +30,13 @@ def burn(stop) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Strict nbval of the course, N times, beside a busy core.")
     parser.add_argument("--runs", type=int, default=5, help="how many complete runs (default 5)")
-    parser.add_argument("--jobs", type=int, default=3, help="pytest workers, as make test JOBS (default 3)")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="pytest workers (default: the Makefile's JOBS, as make test uses)")
     parser.add_argument("--no-busy", action="store_true", help="without the CPU-bound process")
     args = parser.parse_args(argv)
     if not 1 <= args.runs <= 100:
         parser.error(f"--runs must be 1..100, got {args.runs}")
-    if not 1 <= args.jobs <= 16:
+    if args.jobs is not None and not 1 <= args.jobs <= 16:
         parser.error(f"--jobs must be 1..16, got {args.jobs}")
     stop = multiprocessing.Event()
     busy = None if args.no_busy else multiprocessing.Process(target=burn, args=(stop,), daemon=True)
@@ -44,10 +45,11 @@ def main(argv=None) -> int:
     passed = 0
     try:
         for run in range(1, args.runs + 1):
-            print(f"run {run}/{args.runs}: make notebooks JOBS={args.jobs} "
+            jobs = [] if args.jobs is None else [f"JOBS={args.jobs}"]
+            print(f"run {run}/{args.runs}: make notebooks {' '.join(jobs)} "
                   f"({'with' if busy else 'without'} a busy core) ...", flush=True)
             started = time.monotonic()
-            done = subprocess.run(["make", "-s", "notebooks", f"JOBS={args.jobs}"], cwd=REPO,
+            done = subprocess.run(["make", "-s", "notebooks", *jobs], cwd=REPO,
                                   capture_output=True, text=True)
             seconds = time.monotonic() - started
             summary = (done.stdout.strip().splitlines() or ["(no output)"])[-1]

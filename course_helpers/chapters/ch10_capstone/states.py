@@ -79,21 +79,36 @@ def collect_states(rt, board: StateBoard, nodes: list[str], until: Callable[[dic
     return {n: board.states[n] for n in sorted(nodes)}
 
 
-def state_graph(rt, board: StateBoard) -> GraphSnapshot:
+def state_graph(rt, board: StateBoard, timeout: float = 10.0) -> GraphSnapshot:
     """The graph of ``board`` alone: the nodes publishing the ``~/_state`` topics it reads, those
     (hidden) topics, and the board. Draw it with ``draw_graph(snapshot=state_graph(rt, board))``.
 
+    Samples can flow before the graph ties their publisher to its node (that link arrives in a
+    discovery message of its own), so this waits up to ``timeout`` s until every node the board
+    has heard from is in the graph.
+
     Returns: a :class:`~course_helpers.viz.snapshot.GraphSnapshot` holding only those edges.
     """
-    full = graph_snapshot(rt, include_hidden=True)
     watched = set(board.subscriptions_by_topic)
+    heard = {topic[: -len("/_state")] for topic in watched} & set(board.states)
 
     def topic_of(edge) -> str:
         return edge.target if edge.role == "publisher" else edge.source
 
-    edges = [e for e in full.edges if topic_of(e) in watched]
-    nodes = {e.source for e in edges if e.role == "publisher"} | {e.target for e in edges
-                                                                    if e.role == "subscriber"}
-    return GraphSnapshot(domain_id=full.domain_id, nodes=sorted(nodes),
-                         topics={t: full.topics[t] for t in sorted({topic_of(e) for e in edges})},
-                         edges=edges, include_hidden=True)
+    def snapshot() -> GraphSnapshot:
+        full = graph_snapshot(rt, include_hidden=True)
+        edges = [e for e in full.edges if topic_of(e) in watched]
+        nodes = {e.source for e in edges if e.role == "publisher"} | {e.target for e in edges
+                                                                        if e.role == "subscriber"}
+        return GraphSnapshot(domain_id=full.domain_id, nodes=sorted(nodes),
+                             topics={t: full.topics[t] for t in sorted({topic_of(e) for e in edges})},
+                             edges=edges, include_hidden=True)
+
+    latest = {}
+
+    def complete() -> bool:
+        latest["snapshot"] = snapshot()
+        return heard <= set(latest["snapshot"].nodes)
+
+    rt.wait_until(complete, timeout, f"the graph to show the publishers of {', '.join(sorted(heard))}")
+    return latest["snapshot"]
