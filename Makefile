@@ -6,13 +6,13 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.course-installed
 PORT   ?= 8888
 WORK   ?= $(HOME)/ros2-course-work
-# Parallel test workers. The suite mostly waits (discovery, timers, child processes), so four
+# Parallel test workers. The suite mostly waits (discovery, timers, child processes), so five
 # workers keep a 2-core machine busy; each worker has its own ROS domain. `make test JOBS=1` runs
 # one at a time.
 # Files are dealt out whole (--dist loadfile: a notebook's cells share one kernel, a test file's
 # tests their module fixtures), longest first by the seconds in tests/durations.json
 # (conftest.py; --no-loadscope-reorder keeps that order instead of xdist's count of tests).
-JOBS   ?= 4
+JOBS   ?= 5
 XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
 # Jupyter refuses to run as root (containers, CI machines) unless told it is deliberate.
 ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
