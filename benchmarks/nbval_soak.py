@@ -14,6 +14,7 @@ import multiprocessing
 import os
 import subprocess
 import sys
+import tempfile
 import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -60,6 +61,10 @@ def main(argv=None) -> int:
             if not ok:
                 failures = [line for line in done.stdout.splitlines() if line.startswith("FAILED")]
                 print("\n".join(failures[:20]) or done.stdout[-3000:] + done.stderr[-2000:], flush=True)
+                log = os.path.join(tempfile.gettempdir(), f"nbval-soak-run{run}.log")
+                with open(log, "w") as f:
+                    f.write(done.stdout + done.stderr)
+                print(f"the whole output of run {run}: {log}", flush=True)
     finally:
         stop.set()
         if busy is not None:

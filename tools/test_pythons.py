@@ -43,7 +43,7 @@ VERSIONS = ("3.10", "3.11", "3.12", "3.13")
 # with the Makefile's workers and timeouts.
 DEFAULT_PYTEST_ARGS = (
     "--nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg "
-    "--nbval-cell-timeout=120 -p no:cacheprovider -n 3 --dist loadfile notebooks -q"
+    "--nbval-cell-timeout=120 -p no:cacheprovider -n 5 --dist loadfile --no-loadscope-reorder notebooks -q"
 )
 DEFAULT_TIMEOUT_S = 3600.0  # per step (set-up, tests) and version
 HEARTBEAT_S = 30.0  # a silent step prints "still running" this often
