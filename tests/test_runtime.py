@@ -169,6 +169,10 @@ def test_bad_input_gives_a_clear_error_and_the_runtime_keeps_working(rt, call, e
 def test_wait_timeout_names_what_it_waited_for(rt):
     with pytest.raises(WaitTimeout, match="1 message.*nothing_here"):
         rt.wait_for_messages("nothing_here", String, timeout=0.3)
+    rt.node("still_here")
+    # a wait on the graph that fails shows what the graph does list
+    with pytest.raises(WaitTimeout, match="waiting for the node gone_already; the graph lists .*/still_here"):
+        rt.wait_until(lambda: "/gone_already" in rt.graph_nodes(), 0.3, "the node gone_already")
 
 
 def test_a_failing_callback_is_reported_and_others_keep_running(rt):

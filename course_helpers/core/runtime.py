@@ -328,8 +328,13 @@ class CourseRuntime(ChildProcesses):
 
     def wait_until(self, predicate: Callable[[], object], timeout: float = 5.0,
                    what: str = "the condition") -> bool:
-        """Wait until ``predicate()`` is true; raise :class:`WaitTimeout` naming ``what`` if not."""
-        return wait_until(predicate, timeout, what)
+        """Wait until ``predicate()`` is true; if not, raise :class:`WaitTimeout` naming ``what``
+        and the nodes the graph lists at that moment (what is there when something is not)."""
+        try:
+            return wait_until(predicate, timeout, what)
+        except WaitTimeout as exc:
+            listed = ", ".join(self.graph_nodes()) or "no node"
+            raise WaitTimeout(f"{exc}; the graph lists {listed}") from None
 
     def poll_until(self, predicate: Callable[[], object], timeout: float = 5.0) -> bool:
         """Wait until ``predicate()`` is true; False (not an error) if ``timeout`` passes first."""
