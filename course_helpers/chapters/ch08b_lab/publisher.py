@@ -4,7 +4,8 @@ Running it in another process makes every sample cross a real Fast DDS transport
 memory or UDP); inside one process Fast DDS would hand samples over intra-process and
 nothing could be lost. It tells the kernel how far it is over the process channel:
 ``report('progress', ...)`` when it starts sending and about every 0.1 s, and
-``report('summary', ...)`` once it is done.
+``report('summary', ...)`` once it is done, then ``report('acked')`` once every reader has
+acknowledged every sample (at once for best-effort, which has no acknowledgements).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from array import array
 
 from course_interfaces.msg import ExperimentSample
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.duration import Duration
 from rclpy.node import Node
 
 from course_helpers.core.channel import report
@@ -44,7 +46,7 @@ class LabPublisher(Node):
     that are due, so the average rate holds even when a tick is late. A ``publish()`` that
     raises (a full KEEP_ALL history) is counted, not fatal. Reports: ``progress`` and
     ``summary`` with attempted, published, publish_errors and elapsed_s; the summary adds
-    first_error and not_attempted.
+    first_error and not_attempted. Then ``acked`` when the readers have acknowledged everything.
     """
 
     def __init__(self, topic: str, qos: dict, rate_hz: float, payload_bytes: int, count: int,
@@ -67,6 +69,8 @@ class LabPublisher(Node):
         self.timer = self.create_timer(max(1.0 / self.rate_hz, 0.001), self.tick)  # period [s]
         self.timer.cancel()  # started by start()
         self.wait_timer = self.create_timer(0.01, self.check_ready)  # every 10 ms until ready
+        self.ack_timer = self.create_timer(0.02, self.check_acked)
+        self.ack_timer.cancel()  # started once everything is sent
 
     def check_ready(self) -> None:
         """Start sending once the other side is there (and has had MATCH_SETTLE_S to notice us)."""
@@ -106,9 +110,16 @@ class LabPublisher(Node):
             self.timer.cancel()
             report("summary", **self.counts(elapsed_s), first_error=self.first_error,
                    not_attempted=self.count - self.attempted)
+            self.ack_timer.reset()
         elif time.monotonic() - self.last_report > PROGRESS_PERIOD_S:
             self.last_report = time.monotonic()
             report("progress", **self.counts(elapsed_s))
+
+    def check_acked(self) -> None:
+        """Report once when every matched reader has acknowledged every sample (no waiting here)."""
+        if self.publisher.wait_for_all_acked(Duration(seconds=0)):
+            self.ack_timer.cancel()
+            report("acked")
 
     def counts(self, elapsed_s: float) -> dict:
         """What was sent so far: attempted, published, publish_errors, elapsed_s."""

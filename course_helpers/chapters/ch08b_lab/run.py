@@ -35,7 +35,7 @@ from course_helpers.core.waiting import poll_until
 
 MATCH_TIMEOUT_S = 15.0  # child start (Python + rclpy import) plus discovery
 _IDLE_END_S = 0.5  # after the publisher is done, end when nothing arrived for this long
-_RELIABLE_IDLE_END_S = 3.5  # the same for reliable: longer than Fast DDS's 3 s heartbeat period
+_RELIABLE_IDLE_END_S = 3.5  # a late joiner that got nothing yet: one Fast DDS heartbeat period (3 s) and more
 _LATE_JOIN_LISTEN_S = 1.0  # a matched late joiner listens this long after its last sample
 _DRAIN_LIMIT_S = 2.0  # after the publisher is done, wait at most this long (x3 for reliable)
 _START_POLL_S = 0.02  # while the publisher starts: how often to look for its first report
@@ -83,6 +83,7 @@ class _RunState:
     summary: dict | None = None  # its 'summary' report, once it has sent everything
     send_start: float | None = None  # when the publisher started sending (monotonic s)
     summary_at: float | None = None  # when this kernel saw the summary (monotonic s)
+    acked_at: float | None = None  # when it saw that the reader had acknowledged every sample
     matched_at: float | None = None  # late joiner: when its subscription matched the writer
     stopped: bool = False
     cut_short: bool = False
@@ -161,6 +162,8 @@ def _follow(rt, run: _RunState, child, progress, stop_event: threading.Event, pe
     while not poll_until(stop_event.is_set, period_s, period=period_s):
         now = time.monotonic()
         run.progress_line, run.summary = child.last("progress"), child.last("summary")
+        if run.acked_at is None and child.last("acked") is not None:
+            run.acked_at = now
         if run.summary is not None and run.summary_at is None:
             run.summary_at = now
             if config.late_joiner:  # everything is sent: now the subscriber joins
@@ -204,10 +207,13 @@ def _finished(run, now, config) -> bool:
         return True
     if sub.last_seq is not None and sub.last_seq >= run.summary["published"]:
         return True  # the last sample that was sent has arrived
-    # Nothing arrived for a while. A reliable reader learns about missing samples from the writer's
-    # heartbeats (every 3 s by default in Fast DDS), so it gets a longer wait.
-    idle = _IDLE_END_S if config.reliability == "best_effort" else _RELIABLE_IDLE_END_S
-    return now - max(run.summary_at, sub.last_arrival) > idle
+    # The writer says the reader has acknowledged every sample (at once for best-effort): what has
+    # not been delivered a moment after that never will be. Until then a reliable writer still
+    # repairs what the reader missed, however slowly on a busy machine; _drain_hopeless ends that
+    # wait and the missing samples count as in flight, not lost.
+    if run.acked_at is None:
+        return False
+    return now - max(run.acked_at, sub.last_arrival) > _IDLE_END_S
 
 
 def _drain_hopeless(run, now, config) -> bool:
