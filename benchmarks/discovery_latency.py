@@ -198,7 +198,7 @@ def main(argv=None) -> int:
             setup.stop()
     print(f"\nDiscovery of a node in a new process, {args.runs} fresh processes per set-up "
           "(seconds from the node's creation; p50 / p90):")
-    print(f"{'set-up':<17}{'create node':>16}" + "".join(f"{k:>20}" for k in KEYS))
+    print(f"{'set-up':<17}{'create node':>16}" + "".join(f"  {k:>24}" for k in KEYS))
     p90 = {}
     for label, data in rows.items():
         cells = [f"{statistics.median(r['create node'] for r in data):.3f} / "
@@ -207,7 +207,7 @@ def main(argv=None) -> int:
             p50, p90_value, misses = summarize(data, key, PROBE_TIMEOUT_S)
             p90[label, key] = p90_value
             cells.append(f"{p50:.3f} / {p90_value:.3f}" + (f" ({misses} missed)" if misses else ""))
-        print(f"{label:<17}{cells[0]:>16}" + "".join(f"{c:>20}" for c in cells[1:]))
+        print(f"{label:<17}{cells[0]:>16}" + "".join(f"  {c:>24}" for c in cells[1:]))  # never run together
     course_worst = max(p90["course", k] for k in KEYS)
     plain_worst = max(p90["plain-rclpy", k] for k in KEYS)
     print(f"\ncourse p90 (worst of the three): {course_worst:.3f} s (goal <= 0.3 s: "
