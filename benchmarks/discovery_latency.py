@@ -29,6 +29,7 @@ import os
 import statistics
 import subprocess
 import sys
+import threading
 import time
 
 from discovery_targets import PROBE_TIMEOUT_S, BeaconAnchor, probe_procedure
@@ -37,6 +38,7 @@ from course_helpers.core import processes
 from course_helpers.core.dds_config import PROFILE_ENV, default_discovery_env
 from course_helpers.core.domains import reserve_domain
 from course_helpers.core.runtime import get_runtime
+from course_helpers.core.waiting import poll_until
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 KEYS = ("anchor sees new", "new sees anchor", "sub matched")
@@ -86,7 +88,10 @@ while time.monotonic() - created < float(sys.argv[2]) and (seen is None or not m
     if seen is None and '/bench_anchor' in names:
         seen = time.monotonic()
 result = {'start': start, 'created': created, 'seen': seen, 'matched': matched[0] if matched else None}
-print(json.dumps(result))
+print(json.dumps(result), flush=True)
+# stay discoverable until the benchmark ends this process (once the anchor has listed it)
+while time.monotonic() - created < float(sys.argv[2]):
+    rclpy.spin_once(node, timeout_sec=0.05)
 """
 
 
@@ -111,9 +116,15 @@ class CourseSetup:
         rt = get_runtime()
         child = rt.spawn(f"{self.key}_probe", probe_procedure, params={"index": index}, env=self.env)
         result = child.wait_for_report("result", PROBE_TIMEOUT_S + 30)
-        child.wait_for_exit(10)
         name = f"/bench_probe_{index}"
-        seen = [r["t"] for r in self.anchor.reports("seen") if r["node"] == name]
+
+        def anchor_saw():
+            return [r["t"] for r in self.anchor.reports("seen") if r["node"] == name]
+
+        # the probe stays until the anchor lists it (or PROBE_TIMEOUT_S from its creation)
+        rt.poll_until(anchor_saw, max(0.0, result["created"] + PROBE_TIMEOUT_S - time.monotonic()))
+        rt.stop_child(child.label)
+        seen = anchor_saw()
         return {**result, "anchor_saw": seen[0] if seen else None}
 
     def stop(self) -> None:
@@ -130,17 +141,26 @@ class PlainSetup:
         self.anchor = subprocess.Popen([sys.executable, "-c", PLAIN_ANCHOR], env=self.env,
                                        stdout=subprocess.PIPE, text=True)
         self.seen: dict[str, float] = {}
+        threading.Thread(target=self._read_anchor, name="plain-anchor-reader", daemon=True).start()
 
-    def probe(self, index: int) -> dict:
-        out = subprocess.run([sys.executable, "-c", PLAIN_PROBE, str(index), str(PROBE_TIMEOUT_S)],
-                             env=self.env, capture_output=True, text=True, timeout=PROBE_TIMEOUT_S + 30)
-        result = json.loads(out.stdout.strip().splitlines()[-1])
-        name = f"/bench_probe_{index}"
-        deadline = time.monotonic() + 2.0  # the anchor prints what it saw as it sees it
-        while name not in self.seen and time.monotonic() < deadline:
-            line = self.anchor.stdout.readline()
+    def _read_anchor(self) -> None:
+        """The anchor prints each node as it sees it, with its own clock's time."""
+        for line in self.anchor.stdout:
             entry = json.loads(line)
             self.seen.setdefault(entry["node"], entry["t"])
+
+    def probe(self, index: int) -> dict:
+        probe = subprocess.Popen([sys.executable, "-c", PLAIN_PROBE, str(index), str(PROBE_TIMEOUT_S)],
+                                 env=self.env, stdout=subprocess.PIPE, text=True)
+        try:
+            result = json.loads(probe.stdout.readline())
+            name = f"/bench_probe_{index}"
+            # the probe stays until the anchor lists it (or PROBE_TIMEOUT_S from its creation)
+            remaining = result["created"] + PROBE_TIMEOUT_S - time.monotonic()
+            poll_until(lambda: name in self.seen, max(0.0, remaining))
+        finally:
+            probe.terminate()
+            probe.wait(timeout=10)
         return {**result, "anchor_saw": self.seen.get(name)}
 
     def stop(self) -> None:

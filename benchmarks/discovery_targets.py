@@ -53,7 +53,8 @@ class BeaconProbe(Node):
 
 
 def probe_procedure(index: int) -> None:
-    """A child procedure: create the probe node, wait until it sees the anchor and matched, report."""
+    """A child procedure: create the probe node, wait until it sees the anchor and matched, report,
+    then stay (and stay discoverable) until the benchmark stops it once the anchor has listed it."""
     rt = get_runtime()
     started = time.monotonic()
     probe = rt.add(BeaconProbe, index)
@@ -68,3 +69,5 @@ def probe_procedure(index: int) -> None:
 
     rt.poll_until(done, PROBE_TIMEOUT_S)
     report("result", start=started, created=created, seen=seen, matched=probe.matched_at)
+    # leaving now would hide the probe from an anchor that has not listed it yet
+    time.sleep(max(0.0, created + PROBE_TIMEOUT_S - time.monotonic()))
