@@ -52,7 +52,7 @@ def test_domains_isolate_and_a_probe_sees_the_other_domain(rt):
              env={"ROS_DOMAIN_ID": str(spare)})
     rt.spawn("near", "course_helpers.nodes:make_talker", params={"name": "near_talker"},
              wait_for="/near_talker")
-    assert dds.nodes_in_domain(spare, wait_s=8, expect=["/far_talker"]) == ["/far_talker"]
+    assert dds.nodes_in_domain(spare, wait_s=20, expect=["/far_talker"]) == ["/far_talker"]
     time.sleep(0.5)
     assert "/far_talker" not in rt.graph_nodes()
 
