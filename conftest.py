@@ -46,7 +46,7 @@ def pytest_collection_modifyitems(session, config, items):
     known = [record[f] for f in files if f in record]
     default = statistics.median(known) if known else 0.0
     cost = {f: record.get(f, default) for f in files}
-    rank = {f: i for i, f in enumerate(sorted(files, key=lambda f: (-cost[f], files.index(f))))}
+    rank = {f: i for i, f in enumerate(sorted(files, key=lambda f: -cost[f]))}  # ties keep their order
     items.sort(key=lambda item: rank[_file_of(item.nodeid)])  # stable: a file's items keep their order
 
 

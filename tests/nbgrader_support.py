@@ -117,6 +117,15 @@ def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int):
     return rows, log, output
 
 
+def grade_students(course_dir: Path, students: dict[str, dict[str, str]], tmp_path_factory):
+    """Hand in these students' answers and grade them (10 min wall clock each):
+    (rows, log, output folder, the tool's output)."""
+    submissions = hand_in(course_dir, students, tmp_path_factory.mktemp("submissions"))
+    out = course_dir / "graded"
+    rows, log, output = grade(course_dir, submissions, out, wall_clock=600)
+    return rows, log, out, output
+
+
 def alive_runs(markers: set[str]) -> list:
     """Command lines of processes that carry one of these grading runs' markers (another test
     file may be grading at the same time: its runs are not ours to judge)."""

@@ -23,9 +23,8 @@ from .nbgrader_support import (
     HANGS,
     LAST_CELL,
     assert_nothing_left,
-    grade,
     grade_cells,
-    hand_in,
+    grade_students,
     points,
     reason,
     release_course,
@@ -51,10 +50,7 @@ def graded(course, tmp_path_factory):
         "bob": {EXTRA: LAST_CELL},  # hands in the starting code, and a process outside any exercise
         "carol": {EX1: HANGS, EX2: solved[EX2]},
     }
-    submissions = hand_in(course_dir, students, tmp_path_factory.mktemp("submissions"))
-    out = course_dir / "graded"
-    rows, log, output = grade(course_dir, submissions, out, wall_clock=600)
-    return rows, log, out, output
+    return grade_students(course_dir, students, tmp_path_factory)
 
 
 def test_every_exercise_of_the_notebooks_gets_its_reference_solution():

@@ -21,6 +21,7 @@ from .nbgrader_support import (
     assert_no_process_left,
     assert_nothing_left,
     grade,
+    grade_students,
     hand_in,
     points,
     reason,
@@ -47,10 +48,7 @@ def graded(course, tmp_path_factory):
         "dave": {EX1: CRASHES, EX2: solved[EX2]},
         "erin": {EX1: FLOODS, EX2: runaway},
     }
-    submissions = hand_in(course_dir, students, tmp_path_factory.mktemp("submissions"))
-    out = course_dir / "graded"
-    rows, log, output = grade(course_dir, submissions, out, wall_clock=600)
-    return rows, log, out, output
+    return grade_students(course_dir, students, tmp_path_factory)
 
 
 def test_a_dead_flooding_or_runaway_exercise_scores_zero_with_its_reason(graded):
