@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import time
+
 from course_helpers.core.channel import report
 
 
@@ -15,3 +18,36 @@ def count_then_report(count: int = 3) -> None:
 def fail_after_report() -> None:
     """A procedure that fails: the child reports the error and exits 1."""
     raise RuntimeError("measured nothing")
+
+
+def udp_addresses(pid: int) -> list[str]:
+    """The IPv4 addresses that process ``pid``'s UDP sockets are bound to (from /proc)."""
+    import socket
+    import struct
+
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            target = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue  # closed meanwhile
+        if target.startswith("socket:["):
+            inodes.add(target[len("socket:["):-1])
+    with open("/proc/net/udp", encoding="ascii") as table:
+        rows = [line.split() for line in table.read().splitlines()[1:]]
+    local = [row[1].split(":")[0] for row in rows if row[9] in inodes]  # hex, little-endian
+    return [socket.inet_ntoa(struct.pack("<I", int(address, 16))) for address in local]
+
+
+def report_participant_setup(seconds: float = 60.0) -> None:
+    """A procedure: create a node (so the participant exists), report how the participant was set
+    up (range, profile file, UDP addresses), then stay discoverable for ``seconds``."""
+    from rclpy.node import Node
+
+    from course_helpers.core.dds_config import PROFILE_ENV, RANGE_ENV
+    from course_helpers.core.runtime import get_runtime
+
+    get_runtime().add(Node, "setup_reporter")
+    profile = os.path.basename(os.environ.get(PROFILE_ENV, ""))
+    report("setup", range=os.environ.get(RANGE_ENV), profile=profile, udp=udp_addresses(os.getpid()))
+    time.sleep(seconds)

@@ -20,12 +20,11 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Int64
 
+from course_helpers.core.dds_config import init_context
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.executors import SpinThread, plain_executor
 from course_helpers.core.node_hook import build_nodes
@@ -100,8 +99,7 @@ class IsolatedExecutor:
         domain_id = get_runtime().domain.domain_id  # same domain: the kernel can see these nodes
         self.context = Context()
         args = ["--ros-args", "--disable-stdout-logs", "-r", f"__ns:={self.namespace}"]
-        rclpy.init(args=args, context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
+        init_context(self.context, domain_id, args)
         self._closing = False
         self.executor = plain_executor(self.kind, self.context, self.threads)
         self._spinner = SpinThread(self.executor, "isolated-executor", self._record_error).start()

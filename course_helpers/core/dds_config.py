@@ -1,21 +1,39 @@
 """How the course's participants are configured for Fast DDS: discovery timing and transports.
 
-**Fast discovery.** When a participant starts, it announces itself at once and the participants
-already running answer at once; the answer reaches the newcomer's socket within about a
-millisecond (seen with strace), but often arrives too early to be used inside Fast DDS, so the
-newcomer learns of each older participant only at that one's next periodic announcement, every
-3 s by default: a node in a new process was seen after anything from 0 to 3 s. The course's
-participants (the kernel and its children) announce themselves every ``ANNOUNCEMENT_S`` instead,
-through a Fast DDS XML profile named by ``FASTRTPS_DEFAULT_PROFILES_FILE`` (the variable Fast DDS
-2.14 reads). With localhost-only discovery an announcement goes to the ports of 32 possible
-participants: about 31 datagrams of 500 B, 16 kB of UDP payload (measured in chapter 07), so
-about 155 kB/s per participant at 0.1 s against about 5 kB/s at the default 3 s.
+Every course participant (the kernel's, each child's) reads a Fast DDS XML profile named by
+``FASTRTPS_DEFAULT_PROFILES_FILE`` (the variable Fast DDS 2.14 reads). Three settings in it make a
+node in a new process visible within a fraction of a second (chapter 07 measures them; a trace
+of the RTPS traffic and the Fast DDS 2.14 sources explain them):
+
+* **Announcements every** ``ANNOUNCEMENT_S`` **(default 3 s).** A new participant announces itself
+  before it listens: ``RTPSParticipantImpl::enable()`` sends the first announcement and only then
+  registers its receivers, so the instant answer of the participants already running is dropped.
+  The newcomer learns of each one only at its next periodic announcement.
+* **The graph reader asks at once.** Which nodes live in a participant travels on the
+  ``ros_discovery_info`` topic, reliable and transient-local. A reader asks a newly matched writer
+  for its history after ``initialAcknackDelay`` (Fast DDS default 70 ms); the course's graph reader
+  asks after ``GRAPH_ACKNACK_S``, in both directions of every new pair.
+* **Shared-memory health check of** ``SHM_HEALTH_CHECK_MS`` **(default 1000 ms).** The first time a
+  process writes to another participant's shared-memory port it checks that the port's listeners
+  are alive; when the check falls just after another process's check, it sleeps a third of this
+  timeout and checks again. That sleep holds up the new process's sending, discovery included.
+
+The shared-memory setting is a transport setting, and for the LOCALHOST discovery range rmw_fastrtps
+builds the transports itself (with the 1000 ms default). So the course's profile states that same
+localhost-only set-up: shared memory, UDP on 127.0.0.1 only, 127.0.0.1 as the initial peer for 32
+participant ids, no multicast. :func:`init_context` starts a course context with the range
+``SYSTEM_DEFAULT``, which leaves the transports to the profile; ``ROS_AUTOMATIC_DISCOVERY_RANGE``
+stays ``LOCALHOST`` in the environment, for children and other programs.
+
+**Other ranges** (a child with ``OFF``, a user's ``SUBNET``) get the timing settings only, and
+rmw_fastrtps sets up the transports as for any ROS program.
 
 **UDP only.** ``udp_loopback_env(directory)`` is the environment for a child whose samples must
 cross the loopback network instead of shared memory (chapter 07's transports, the QoS lab's UDP
-mode). rmw_fastrtps replaces the transports of a participant whose discovery range is LOCALHOST,
-so such a child uses the SUBNET range with 127.0.0.1 as its only static peer, and a profile whose
-one transport is UDPv4 on 127.0.0.1 (with the same discovery timing).
+mode): the same profile without shared memory.
+
+**Fast DDS defaults.** ``default_discovery_env(directory)`` gives a child Fast DDS's own timing,
+for comparisons (chapter 07, the benchmark).
 
 A user who set ``FASTRTPS_DEFAULT_PROFILES_FILE`` keeps their own profile.
 """
@@ -23,40 +41,88 @@ A user who set ``FASTRTPS_DEFAULT_PROFILES_FILE`` keeps their own profile.
 from __future__ import annotations
 
 import os
+import threading
+from contextlib import contextmanager
 
 PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
-ANNOUNCEMENT_S = 0.1  # s; the course's periodic participant announcement (Fast DDS default: 3 s)
-DEFAULT_ANNOUNCEMENT_S = 3.0  # s; what participants outside the course use
+RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+ANNOUNCEMENT_S = 0.1  # s; the course's periodic participant announcement
+DEFAULT_ANNOUNCEMENT_S = 3.0  # s; Fast DDS's default, what participants outside the course use
 LEASE_S = 20  # s; how long a silent participant is kept (Fast DDS's default)
+GRAPH_TOPIC = "ros_discovery_info"  # rmw's topic of which nodes live in which participant
+GRAPH_ACKNACK_S = 0.002  # s; the graph reader's first request to a new writer
+DEFAULT_ACKNACK_S = 0.07  # s; Fast DDS's default initialAcknackDelay
+SHM_HEALTH_CHECK_MS = 300  # ms; the course's shared-memory port health-check timeout
+DEFAULT_SHM_HEALTH_CHECK_MS = 1000  # ms; Fast DDS's default (and what rmw's LOCALHOST set-up uses)
+PEER_IDS = 32  # participant ids on 127.0.0.1 that an announcement reaches (as rmw's LOCALHOST)
 
-_HEAD = ('<?xml version="1.0" encoding="UTF-8" ?>\n'
-         '<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">\n')
-_UDP_TRANSPORT = """  <transport_descriptors>
-    <transport_descriptor>
-      <transport_id>course_udp_loopback</transport_id>
-      <type>UDPv4</type>
-      <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>
-    </transport_descriptor>
-  </transport_descriptors>
-"""
+# the profiles the course writes, by file name
+LOCALHOST_PROFILE = "course_localhost.xml"  # shared memory + UDP on 127.0.0.1, tuned timing
+TIMING_PROFILE = "course_timing.xml"  # tuned timing only, for ranges other than LOCALHOST
+UDP_PROFILE = "course_udp_loopback.xml"  # UDP on 127.0.0.1 only, tuned timing
+DEFAULTS_PROFILE = "fastdds_default_discovery.xml"  # Fast DDS's timing, for comparisons
+_CHOSEN_BY_RANGE = (LOCALHOST_PROFILE, TIMING_PROFILE)  # picked per process, may be replaced
+_STATES_TRANSPORTS = (LOCALHOST_PROFILE, UDP_PROFILE)  # configure localhost-only themselves
+
+_environ_lock = threading.RLock()  # held while a context starts with a temporary range
 
 
-def profile_xml(announcement_s: float = ANNOUNCEMENT_S, udp_only: bool = False) -> str:
-    """A Fast DDS default participant profile: the announcement period, and optionally UDP only."""
-    seconds = int(announcement_s)
-    nanoseconds = round((announcement_s - seconds) * 1e9)
-    transports = ("      <userTransports><transport_id>course_udp_loopback</transport_id></userTransports>\n"
-                  "      <useBuiltinTransports>false</useBuiltinTransports>\n") if udp_only else ""
-    return (_HEAD + (_UDP_TRANSPORT if udp_only else "")
-            + '  <participant profile_name="course_participant" is_default_profile="true">\n'
-            + "    <rtps>\n"
-            + transports
-            + "      <builtin>\n        <discovery_config>\n"
-            + f"          <leaseDuration><sec>{LEASE_S}</sec><nanosec>0</nanosec></leaseDuration>\n"
-            + f"          <leaseAnnouncement><sec>{seconds}</sec><nanosec>{nanoseconds}</nanosec>"
-            + "</leaseAnnouncement>\n"
-            + "        </discovery_config>\n      </builtin>\n"
-            + "    </rtps>\n  </participant>\n</profiles>\n")
+def _duration(tag: str, seconds: float) -> str:
+    whole = int(seconds)
+    return f"<{tag}><sec>{whole}</sec><nanosec>{round((seconds - whole) * 1e9)}</nanosec></{tag}>"
+
+
+def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = True) -> str:
+    """A Fast DDS profile: the default participant, and the graph topic's reader.
+
+    Args:
+        transports: the transports of a localhost-only participant (``"SHM"``, ``"UDPv4"``), or ()
+            to leave transports and peers to rmw_fastrtps.
+        tuned: the course's timing; False gives Fast DDS's defaults (for comparisons).
+    """
+    unknown = set(transports) - {"SHM", "UDPv4"}
+    if unknown:
+        raise ValueError(f"transports must be 'SHM' and/or 'UDPv4', got {sorted(unknown)}")
+    announcement = ANNOUNCEMENT_S if tuned else DEFAULT_ANNOUNCEMENT_S
+    health_ms = SHM_HEALTH_CHECK_MS if tuned else DEFAULT_SHM_HEALTH_CHECK_MS
+    lines = ['<?xml version="1.0" encoding="UTF-8" ?>',
+             '<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">']
+    if transports:
+        lines.append("  <transport_descriptors>")
+        if "SHM" in transports:
+            lines += ["    <transport_descriptor>", "      <transport_id>course_shm</transport_id>",
+                      "      <type>SHM</type>",
+                      f"      <healthy_check_timeout_ms>{health_ms}</healthy_check_timeout_ms>",
+                      "    </transport_descriptor>"]
+        if "UDPv4" in transports:
+            lines += ["    <transport_descriptor>", "      <transport_id>course_udp</transport_id>",
+                      "      <type>UDPv4</type>",
+                      f"      <maxInitialPeersRange>{PEER_IDS}</maxInitialPeersRange>",
+                      "      <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>",
+                      "    </transport_descriptor>"]
+        lines.append("  </transport_descriptors>")
+    lines += ['  <participant profile_name="course_participant" is_default_profile="true">', "    <rtps>"]
+    if transports:
+        ids = "".join(f"<transport_id>course_{t.lower().removesuffix('v4')}</transport_id>"
+                      for t in transports)
+        lines += [f"      <userTransports>{ids}</userTransports>",
+                  "      <useBuiltinTransports>false</useBuiltinTransports>"]
+    lines += ["      <builtin>", "        <discovery_config>",
+              f"          {_duration('leaseDuration', LEASE_S)}",
+              f"          {_duration('leaseAnnouncement', announcement)}",
+              "        </discovery_config>"]
+    if transports:  # unicast discovery only, to 127.0.0.1: no multicast
+        lines += ["        <metatrafficUnicastLocatorList><locator><udpv4/></locator>"
+                  "</metatrafficUnicastLocatorList>",
+                  "        <initialPeersList><locator><udpv4><address>127.0.0.1</address></udpv4></locator>"
+                  "</initialPeersList>"]
+    lines += ["      </builtin>", "    </rtps>", "  </participant>"]
+    if tuned:
+        lines += [f'  <data_reader profile_name="{GRAPH_TOPIC}">',
+                  f"    <times>{_duration('initialAcknackDelay', GRAPH_ACKNACK_S)}</times>",
+                  "  </data_reader>"]
+    lines.append("</profiles>")
+    return "\n".join(lines) + "\n"
 
 
 def write_profile(directory: str, name: str, text: str) -> str:
@@ -73,22 +139,64 @@ def write_profile(directory: str, name: str, text: str) -> str:
     return path
 
 
-def apply_course_discovery(directory: str) -> str:
-    """Make this process and its children announce themselves every ``ANNOUNCEMENT_S``.
+def _is_localhost_range() -> bool:
+    return os.environ.get(RANGE_ENV, "").upper() == "LOCALHOST"
 
-    Sets ``FASTRTPS_DEFAULT_PROFILES_FILE`` in ``os.environ`` (before the first participant is
-    created) unless it is set already: by the user, or by the kernel for this child. Returns the
-    profile in use.
+
+def apply_course_discovery(directory: str) -> str:
+    """Point ``FASTRTPS_DEFAULT_PROFILES_FILE`` at the course's profile for this process's range.
+
+    Call it before the process's first participant exists. The LOCALHOST range gets the
+    localhost-only profile, other ranges the timing-only one. A profile set by the user, or
+    chosen for a child (UDP only, Fast DDS defaults), is kept. Returns the profile in use.
     """
-    if not os.environ.get(PROFILE_ENV):
-        os.environ[PROFILE_ENV] = write_profile(directory, "course_fast_discovery.xml", profile_xml())
+    current = os.environ.get(PROFILE_ENV)
+    if not current or os.path.basename(current) in _CHOSEN_BY_RANGE:
+        if _is_localhost_range():
+            os.environ[PROFILE_ENV] = write_profile(directory, LOCALHOST_PROFILE, profile_xml())
+        else:
+            os.environ[PROFILE_ENV] = write_profile(directory, TIMING_PROFILE, profile_xml(()))
     return os.environ[PROFILE_ENV]
 
 
+@contextmanager
+def _range_left_to_profile():
+    """While a participant is created: the range SYSTEM_DEFAULT, if the profile states LOCALHOST itself."""
+    with _environ_lock:
+        if not (_is_localhost_range()
+                and os.path.basename(os.environ.get(PROFILE_ENV, "")) in _STATES_TRANSPORTS):
+            yield
+            return
+        saved = os.environ[RANGE_ENV]
+        os.environ[RANGE_ENV] = "SYSTEM_DEFAULT"
+        try:
+            yield
+        finally:
+            os.environ[RANGE_ENV] = saved
+
+
+def init_context(context, domain_id: int, args: list[str] | None = None) -> None:
+    """``rclpy.init`` for a course context: its participant takes the course profile's transports.
+
+    rclpy's signal handlers are not installed (an interrupt stops a cell, never ROS).
+    """
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    with _range_left_to_profile():
+        rclpy.init(args=args, context=context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+
+
+def environment_snapshot() -> dict[str, str]:
+    """A copy of ``os.environ`` as children should inherit it (never the temporary range)."""
+    with _environ_lock:
+        return dict(os.environ)
+
+
 def default_discovery_env(directory: str) -> dict[str, str]:
-    """Environment for a child that uses Fast DDS's default announcement period (3 s), for comparison."""
-    path = write_profile(directory, "fastdds_default_discovery.xml", profile_xml(DEFAULT_ANNOUNCEMENT_S))
-    return {PROFILE_ENV: path}
+    """Environment for a child with Fast DDS's own discovery timing and rmw's transports (comparisons)."""
+    return {PROFILE_ENV: write_profile(directory, DEFAULTS_PROFILE, profile_xml((), tuned=False))}
 
 
 def udp_loopback_env(directory: str) -> dict[str, str]:
@@ -97,6 +205,5 @@ def udp_loopback_env(directory: str) -> dict[str, str]:
     Writes the XML profile into ``directory`` and returns the variables to pass as ``env=`` to
     ``rt.spawn``.
     """
-    path = write_profile(directory, "course_udp_loopback.xml", profile_xml(udp_only=True))
-    return {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_PEERS": "127.0.0.1",
-            PROFILE_ENV: path}
+    path = write_profile(directory, UDP_PROFILE, profile_xml(("UDPv4",)))
+    return {RANGE_ENV: "LOCALHOST", PROFILE_ENV: path}

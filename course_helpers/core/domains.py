@@ -156,18 +156,16 @@ def nodes_in_domain(domain_id: int, wait_s: float = 1.5, expect: list[str] | tup
     Waits ``wait_s`` seconds for discovery (less if every name in ``expect`` shows up first).
     The probe's own node is hidden (its name starts with '_') and left out.
     """
-    import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
 
+    from course_helpers.core.dds_config import init_context
     from course_helpers.core.names import node_full_names
     from course_helpers.core.waiting import poll_until
 
     domain_id = parse_domain_id(domain_id)
     context = Context()
-    rclpy.init(context=context, domain_id=domain_id,
-               signal_handler_options=SignalHandlerOptions.NO)
+    init_context(context, domain_id)
     try:
         probe = Node("_domain_probe", context=context, enable_rosout=False,
                      start_parameter_services=False)

@@ -34,6 +34,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 
 from course_helpers.core.channel import CHANNEL_ENV, ChannelReader
+from course_helpers.core.dds_config import environment_snapshot
 from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
@@ -308,7 +309,7 @@ def start(label: str, argv: list[str], *, group: str = "node", env: dict | None 
 
 def _environment(changes: dict | None) -> dict[str, str]:
     """The kernel's environment with ``changes`` applied (a value of None removes the variable)."""
-    env = dict(os.environ)
+    env = environment_snapshot()
     for key, value in (changes or {}).items():
         if value is None:
             env.pop(key, None)

@@ -32,7 +32,7 @@ from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_opti
 
 from course_helpers.core import console as _console
 from course_helpers.core import processes
-from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S, apply_course_discovery
+from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S, apply_course_discovery, init_context
 from course_helpers.core.domains import DomainChoice, choose_domain
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.executors import (
@@ -114,8 +114,7 @@ class CourseRuntime(ChildProcesses):
             apply_course_discovery(processes.log_dir())  # before the first participant exists
             self.context = Context()
             args = ["--ros-args", "--disable-stdout-logs"] if self._in_kernel else None
-            rclpy.init(args=args, context=self.context, domain_id=self.domain.domain_id,
-                       signal_handler_options=SignalHandlerOptions.NO)
+            init_context(self.context, self.domain.domain_id, args)
             if self.executor_kind == "multi":
                 self.executor = CourseMultiThreadedExecutor(self.context, self.threads, self._record_error)
             else:

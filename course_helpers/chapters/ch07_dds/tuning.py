@@ -1,8 +1,8 @@
 """Discovery tuning as a real knob: how fast a new process finds a node, and what the speed costs.
 
 :func:`compare_discovery` times fresh probe processes (:func:`.discovery.discovery_probe`) against
-an anchor node in a child process, once with Fast DDS's default announcement period and once with
-the course's, each set-up in a ROS domain of its own so the two never meet. Probes of both set-ups
+an anchor node in a child process, once with Fast DDS's default discovery settings and once with
+the course's profile, each set-up in a ROS domain of its own so the two never meet. Probes of both set-ups
 start together, so a busy moment on the machine hits both alike.
 
 :func:`listen_to_announcements` measures what the announcements cost: it binds plain UDP sockets
@@ -19,14 +19,25 @@ from dataclasses import dataclass, field
 
 from course_helpers.chapters.ch07_dds.discovery import DiscoveryAnchor, DiscoveryTiming, discovery_probe
 from course_helpers.chapters.ch07_dds.listener import ReportingListener
-from course_helpers.core.dds_config import ANNOUNCEMENT_S, DEFAULT_ANNOUNCEMENT_S, default_discovery_env
+from course_helpers.core.dds_config import (
+    ANNOUNCEMENT_S,
+    DEFAULT_ACKNACK_S,
+    DEFAULT_ANNOUNCEMENT_S,
+    DEFAULT_SHM_HEALTH_CHECK_MS,
+    GRAPH_ACKNACK_S,
+    SHM_HEALTH_CHECK_MS,
+    default_discovery_env,
+)
 from course_helpers.core.domains import reserve_domain, reserve_spare_domain
 from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
 SETTINGS = {
-    "Fast DDS default": f"a participant announces itself every {DEFAULT_ANNOUNCEMENT_S:g} s",
-    "course": f"a participant announces itself every {ANNOUNCEMENT_S:g} s (the course's XML profile)",
+    "Fast DDS default": (f"announcements every {DEFAULT_ANNOUNCEMENT_S:g} s, graph request after "
+                         f"{DEFAULT_ACKNACK_S * 1e3:g} ms, "
+                         f"shared-memory check {DEFAULT_SHM_HEALTH_CHECK_MS} ms"),
+    "course": (f"announcements every {ANNOUNCEMENT_S:g} s, graph request after {GRAPH_ACKNACK_S * 1e3:g} ms, "
+               f"shared-memory check {SHM_HEALTH_CHECK_MS} ms"),
 }
 PROBE_TIMEOUT_S = 6.5  # s; two default announcement periods and a margin
 ANCHOR_SETTLE_S = 1.0  # s; past the anchors' first, fast announcements (5 at 0.1 s), into the period

@@ -1,0 +1,67 @@
+"""The course's Fast DDS set-up on live participants: localhost-only transports, chosen per range.
+
+Each check starts a fresh child process (its sockets are its participant's alone) that reports its
+discovery range, the profile file Fast DDS read and the addresses of its UDP sockets.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from course_helpers.core import dds_config
+from course_helpers.core.dds_config import (
+    DEFAULTS_PROFILE,
+    LOCALHOST_PROFILE,
+    RANGE_ENV,
+    TIMING_PROFILE,
+    UDP_PROFILE,
+    default_discovery_env,
+    udp_loopback_env,
+)
+from tests.helpers_children import report_participant_setup
+
+
+def _setup_of(rt, label: str, env: dict | None = None) -> dict:
+    child = rt.spawn(label, report_participant_setup, env=env)
+    return child.wait_for_report("setup", 30, f"the participant set-up of {label}")
+
+
+def test_a_child_gets_the_localhost_profile_listens_on_loopback_only_and_is_found(rt):
+    setup = _setup_of(rt, "course_child")
+    assert setup["range"] == "LOCALHOST"  # the variable children see is what the course promises
+    assert setup["profile"] == LOCALHOST_PROFILE
+    assert setup["udp"] and set(setup["udp"]) == {"127.0.0.1"}, setup["udp"]
+    rt.wait_until(lambda: "/setup_reporter" in rt.graph_nodes(), 20, "the kernel to find the child's node")
+
+
+def test_the_udp_profile_is_loopback_only_too(rt):
+    setup = _setup_of(rt, "udp_child", udp_loopback_env(rt.log_dir))
+    assert (setup["range"], setup["profile"]) == ("LOCALHOST", UDP_PROFILE)
+    assert setup["udp"] and set(setup["udp"]) == {"127.0.0.1"}, setup["udp"]
+    rt.wait_until(lambda: "/setup_reporter" in rt.graph_nodes(), 20, "the kernel to find the UDP child")
+
+
+def test_another_range_gets_the_timing_only_profile(rt):
+    setup = _setup_of(rt, "loner_child", {RANGE_ENV: "OFF"})
+    assert (setup["range"], setup["profile"]) == ("OFF", TIMING_PROFILE)
+
+
+def test_fast_dds_defaults_leave_the_transports_to_rmw(rt):
+    """The comparison set-up: rmw_fastrtps's own LOCALHOST transports listen on every interface."""
+    setup = _setup_of(rt, "defaults_child", default_discovery_env(rt.log_dir))
+    assert (setup["range"], setup["profile"]) == ("LOCALHOST", DEFAULTS_PROFILE)
+    assert "0.0.0.0" in setup["udp"], setup["udp"]
+
+
+def test_the_tuned_settings_are_in_the_profile_and_the_defaults_are_not():
+    tuned, defaults = dds_config.profile_xml(), dds_config.profile_xml((), tuned=False)
+    assert "<healthy_check_timeout_ms>300</healthy_check_timeout_ms>" in tuned
+    assert '<data_reader profile_name="ros_discovery_info">' in tuned
+    assert "<nanosec>100000000</nanosec></leaseAnnouncement>" in tuned
+    assert "<sec>3</sec><nanosec>0</nanosec></leaseAnnouncement>" in defaults
+    assert "ros_discovery_info" not in defaults and "transport" not in defaults
+
+
+def test_an_unknown_transport_is_named():
+    with pytest.raises(ValueError, match=r"'SHM' and/or 'UDPv4', got \['TCPv4'\]"):
+        dds_config.profile_xml(("TCPv4",))
