@@ -6,8 +6,11 @@ Three set-ups are measured in the same run, interleaved, each in a ROS domain of
 localhost-only discovery:
 
 * ``course``: an anchor node and fresh probe processes started through the course's process
-  layer (``rt.spawn``), with the course's Fast DDS profile (announcements every 0.1 s);
-* ``fastdds-default``: the same course code, with Fast DDS's default announcement period (3 s);
+  layer (``rt.spawn``), with the course's Fast DDS profile (``course_helpers/core/dds_config.py``:
+  announcements every 0.1 s, the graph reader's first request after 2 ms, a 300 ms shared-memory
+  health check);
+* ``fastdds-default``: the same course code, with Fast DDS's default discovery settings (3 s,
+  70 ms, 1000 ms) and rmw_fastrtps's own LOCALHOST transports;
 * ``plain-rclpy``: an anchor and probes written in plain rclpy (no course code at all), with
   Fast DDS's defaults: the baseline a student gets from a textbook script.
 
@@ -69,12 +72,13 @@ except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
 """
 
 PLAIN_PROBE = """
-import json, sys, time
+import json, signal, sys, time
 import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from std_msgs.msg import String
 rclpy.init()
+signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))  # the benchmark's stop: leave quietly
 start = time.monotonic()
 matched = []
 node = Node('bench_probe_' + sys.argv[1])
