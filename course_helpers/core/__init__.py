@@ -10,8 +10,8 @@ plots or the ``%ros2`` magics.
 * ``waiting``: the one way to wait (``wait_until`` raises, ``poll_until`` returns a bool);
 * ``processes``, ``channel``, ``child``: the one process layer, and the one structured
   channel on which a child reports to the kernel;
-* ``domains``, ``dds_config``: a ROS domain per kernel, machine-wide, and how participants
-  discover each other;
+* ``domains``, ``dds_config``, ``shm_ports``: a ROS domain per kernel, machine-wide, how
+  participants discover each other, and the shared-memory files old processes left behind;
 * ``console``, ``logs``: node consoles under the cell that started a node;
 * ``names``, ``validation``, ``qos_dict``, ``msg_yaml``, ``units``, ``versions``,
   ``errors``: small conversions and checks with errors a student can act on;

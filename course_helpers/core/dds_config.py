@@ -17,6 +17,9 @@ of the RTPS traffic and the Fast DDS 2.14 sources explain them):
   process writes to another participant's shared-memory port it checks that the port's listeners
   are alive; when the check falls just after another process's check, it sleeps a third of this
   timeout and checks again. That sleep holds up the new process's sending, discovery included.
+  A port keeps the timeout of the process that created it, and a port outlives its listener while
+  another process holds it (:mod:`.shm_ports`): next to running programs with Fast DDS's defaults,
+  a course process can still meet the 333 ms wait.
 
 The shared-memory setting is a transport setting, and for the LOCALHOST discovery range rmw_fastrtps
 builds the transports itself (with the 1000 ms default). So the course's profile states that same

@@ -5,7 +5,8 @@ the machine holds, whoever runs it: the reservations are lock files in one share
 directory (``/tmp/ros2-course-domains``, mode 1777), and the operating system releases a
 lock when its process exits. On a classroom server, where every student is a Unix user,
 two students' kernels therefore never share a domain, even when their nodes talk over
-UDP. A user who sets ``ROS_DOMAIN_ID`` keeps full control. Discovery stays on this machine
+UDP. A user who sets ``ROS_DOMAIN_ID`` keeps full control. A reserved domain starts without the
+shared-memory ports that earlier processes left in it (:mod:`.shm_ports`). Discovery stays on this machine
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless the user chose another range.
 """
 
@@ -19,6 +20,7 @@ import tempfile
 from dataclasses import dataclass
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.shm_ports import remove_dead_segments, remove_stale_ports
 
 # Domain IDs 0..101 are safe on Linux for the default port mapping; 0 is what every other
 # ROS program uses, so the course starts at 1.
@@ -69,6 +71,7 @@ def choose_domain() -> DomainChoice:
         source = "user"
     else:
         if not _kernel_domain:
+            remove_dead_segments()  # what killed processes left in /dev/shm, once per kernel
             _kernel_domain.append(reserve_domain())
         domain = _kernel_domain[0]
         source = "automatic"
@@ -135,6 +138,7 @@ def reserve_domain(exclude: tuple[int, ...] = ()) -> int:
                 continue
             raise
         _held[domain] = fd
+        remove_stale_ports(domain)  # no course participant uses it: start it without old ports
         return domain
     raise CourseError(
         f"all ROS domains {FIRST_DOMAIN}-{LAST_DOMAIN} are held by other course kernels on "
