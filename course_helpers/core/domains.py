@@ -5,9 +5,9 @@ the machine holds, whoever runs it: the reservations are lock files in one share
 directory (``/tmp/ros2-course-domains``, mode 1777), and the operating system releases a
 lock when its process exits. On a classroom server, where every student is a Unix user,
 two students' kernels therefore never share a domain, even when their nodes talk over
-UDP. A user who sets ``ROS_DOMAIN_ID`` keeps full control. A reserved domain starts without the
-shared-memory ports that earlier processes left in it (:mod:`.shm_ports`). Discovery stays on this machine
-(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless the user chose another range.
+UDP. A user who sets ``ROS_DOMAIN_ID`` keeps full control. A reserved domain starts without
+the shared-memory ports that earlier processes left in it (:mod:`.shm_ports`). Discovery stays
+on this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless the user chose another range.
 """
 
 from __future__ import annotations
