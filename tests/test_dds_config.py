@@ -58,8 +58,9 @@ def test_the_tuned_settings_are_in_the_profile_and_the_defaults_are_not():
     assert "<healthy_check_timeout_ms>300</healthy_check_timeout_ms>" in tuned
     assert '<data_reader profile_name="ros_discovery_info">' in tuned
     assert "<nanosec>100000000</nanosec></leaseAnnouncement>" in tuned
+    assert '<data_writer profile_name="service">' in tuned and "max_blocking_time" in tuned
     assert "<sec>3</sec><nanosec>0</nanosec></leaseAnnouncement>" in defaults
-    assert "ros_discovery_info" not in defaults and "transport" not in defaults
+    assert "ros_discovery_info" not in defaults and "transport" not in defaults and "service" not in defaults
 
 
 def test_an_unknown_transport_is_named():

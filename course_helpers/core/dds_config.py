@@ -21,6 +21,11 @@ of the RTPS traffic and the Fast DDS 2.14 sources explain them):
   another process holds it (:mod:`.shm_ports`): next to running programs with Fast DDS's defaults,
   a course process can still meet the 333 ms wait.
 
+**Replies to early requests.** A client may see a service, and send its request, before the server
+has matched the client's reply reader; faster discovery makes that more likely. rmw_fastrtps then
+holds the reply for up to the reply writer's ``max_blocking_time`` (Fast DDS default 100 ms) and
+drops it after that. The course's ``service`` writer profile lets a server wait ``REPLY_WAIT_S``.
+
 The shared-memory setting is a transport setting, and for the LOCALHOST discovery range rmw_fastrtps
 builds the transports itself (with the 1000 ms default). So the course's profile states that same
 localhost-only set-up: shared memory, UDP on 127.0.0.1 only, 127.0.0.1 as the initial peer for 32
@@ -57,6 +62,8 @@ GRAPH_ACKNACK_S = 0.002  # s; the graph reader's first request to a new writer
 DEFAULT_ACKNACK_S = 0.07  # s; Fast DDS's default initialAcknackDelay
 SHM_HEALTH_CHECK_MS = 300  # ms; the course's shared-memory port health-check timeout
 DEFAULT_SHM_HEALTH_CHECK_MS = 1000  # ms; Fast DDS's default (and what rmw's LOCALHOST set-up uses)
+SERVICE_PROFILE = "service"  # the profile rmw_fastrtps reads for every service's reply writer
+REPLY_WAIT_S = 1.0  # s; how long a server waits for the client's reply reader (Fast DDS default: 0.1 s)
 PEER_IDS = 32  # participant ids on 127.0.0.1 that an announcement reaches (as rmw's LOCALHOST)
 
 # the profiles the course writes, by file name
@@ -123,7 +130,10 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
     if tuned:
         lines += [f'  <data_reader profile_name="{GRAPH_TOPIC}">',
                   f"    <times>{_duration('initialAcknackDelay', GRAPH_ACKNACK_S)}</times>",
-                  "  </data_reader>"]
+                  "  </data_reader>",
+                  f'  <data_writer profile_name="{SERVICE_PROFILE}">',
+                  f"    <qos><reliability>{_duration('max_blocking_time', REPLY_WAIT_S)}</reliability></qos>",
+                  "  </data_writer>"]
     lines.append("</profiles>")
     return "\n".join(lines) + "\n"
 
