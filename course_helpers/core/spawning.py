@@ -10,8 +10,11 @@ import time
 
 from course_helpers.core import processes
 from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.names import split_full_name
 from course_helpers.core.validation import check_node_name
 from course_helpers.core.waiting import poll_until
+
+ENTRY_SETTLE_S = 0.15  # s; a new node's graph entry unchanged this long counts as complete
 
 
 class ChildProcesses:
@@ -46,12 +49,39 @@ class ChildProcesses:
         return child
 
     def wait_for_child_node(self, child: processes.ChildProcess, fqn: str, timeout: float = 15.0) -> None:
-        """Wait until ``child``'s node ``fqn`` is in the graph; fail at once if the process ends."""
+        """Wait until ``child``'s node ``fqn`` is in the graph with all its endpoints; fail at once if
+        the process ends.
+
+        A node's endpoints reach the graph one update after another, and the first update can list
+        the node before all of them: after the node appears, this waits (within ``timeout``) until
+        its publishers, subscriptions, services and clients stay the same for ``ENTRY_SETTLE_S``.
+        """
+        started = time.monotonic()
         if not poll_until(lambda: fqn in self.graph_nodes() or not child.alive, timeout):
             raise WaitTimeout(f"{child.group} process {child.label!r} did not show node {fqn} in the graph "
                               f"within {timeout:g} s. Its output:\n{child.output_tail()}")
         if fqn not in self.graph_nodes():
             raise child.failure(f"node {fqn} appeared")
+        last = [self._graph_entry(fqn), time.monotonic()]
+
+        def settled() -> bool:
+            entry = self._graph_entry(fqn)
+            if entry != last[0]:
+                last[:] = [entry, time.monotonic()]
+            return time.monotonic() - last[1] >= ENTRY_SETTLE_S
+
+        poll_until(settled, max(0.0, timeout - (time.monotonic() - started)), period=0.02)
+
+    def _graph_entry(self, fqn: str) -> tuple:
+        """What the graph lists for node ``fqn``: its publishers, subscriptions, services and clients."""
+        namespace, name = split_full_name(fqn)
+        node = self._graph_node()
+        try:
+            return tuple(sorted(map(str, call(name, namespace))) for call in (
+                node.get_publisher_names_and_types_by_node, node.get_subscriber_names_and_types_by_node,
+                node.get_service_names_and_types_by_node, node.get_client_names_and_types_by_node))
+        except Exception:  # the node left meanwhile: nothing to settle
+            return ()
 
     def stop_child(self, name: str) -> int | None:
         """Stop a child process by name (SIGTERM, then SIGKILL); returns its exit code."""
