@@ -62,13 +62,14 @@ class ChildProcesses:
                               f"within {timeout:g} s. Its output:\n{child.output_tail()}")
         if fqn not in self.graph_nodes():
             raise child.failure(f"node {fqn} appeared")
-        last = [self._graph_entry(fqn), time.monotonic()]
+        entry, since = self._graph_entry(fqn), time.monotonic()
 
         def settled() -> bool:
-            entry = self._graph_entry(fqn)
-            if entry != last[0]:
-                last[:] = [entry, time.monotonic()]
-            return time.monotonic() - last[1] >= ENTRY_SETTLE_S
+            nonlocal entry, since
+            now = self._graph_entry(fqn)
+            if now != entry:
+                entry, since = now, time.monotonic()
+            return time.monotonic() - since >= ENTRY_SETTLE_S
 
         poll_until(settled, max(0.0, timeout - (time.monotonic() - started)), period=0.02)
 
