@@ -10,6 +10,7 @@ import pytest
 from std_msgs.msg import String
 
 from course_helpers import CourseError, WaitTimeout
+from course_helpers.core import child as child_module
 from course_helpers.nodes import Listener, Talker, make_relay
 
 from .conftest import run_python
@@ -102,6 +103,28 @@ def test_child_process_node_is_reaped(rt):
     assert not child.alive
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
+
+
+def test_a_stopping_childs_nodes_leave_before_its_participant(rt):
+    """The child's hidden keeper node holds its participant until its nodes are gone from the graph.
+
+    A goodbye that overtakes the nodes' last graph update can leave a node in the graph for good.
+    """
+    import threading
+
+    rt.spawn("leaving", Talker, {"name": "leaving_talker"}, wait_for="/leaving_talker")
+    keeper = "/" + child_module.KEEPER_NODE
+    assert keeper in rt.graph_nodes(include_hidden=True)
+    stopper = threading.Thread(target=rt.stop_child, args=("leaving",))
+    stopper.start()
+    order = []
+    for name in ("/leaving_talker", keeper):
+        rt.wait_until(lambda name=name: name not in rt.graph_nodes(include_hidden=True), 10,
+                      f"{name} to leave the graph")
+        order.append((name, keeper in rt.graph_nodes(include_hidden=True)))
+    stopper.join()
+    # when the talker had gone, the keeper (the participant) was still there; then it went too
+    assert order == [("/leaving_talker", True), (keeper, False)]
 
 
 def test_child_stopped_mid_callback_still_exits_cleanly(rt):

@@ -4,7 +4,8 @@
     Calls the target with the keyword arguments inside the child's own course runtime.
     If it builds nodes (it returns a node, a list of nodes, or a Node subclass is the
     target), they are spun until the process gets SIGTERM or SIGINT; then they are
-    destroyed, and the process exits 0. The child reports ``ready`` with its nodes' full
+    destroyed, the process's participant leaves :data:`DEPARTURE_S` later, and the process
+    exits 0. The child reports ``ready`` with its nodes' full
     names on the channel first. A target that returns None is a procedure: it runs,
     reports what it measured over the channel, and the process exits.
 ``python -m course_helpers.core.child exec PROGRAM ARGS...``
@@ -34,6 +35,8 @@ from course_helpers.core.waiting import poll_until
 PR_SET_PDEATHSIG = 1
 CLEANUP_S = 10.0  # how long stopping may take once asked (or orphaned) before the process just exits
 PARENT_CHECK_S = 0.5  # how often the watchdog looks for the kernel
+KEEPER_NODE = "_course_child"  # hidden: holds the process's participant until its nodes have left
+DEPARTURE_S = 0.2  # s; from a stopping child's last node update to its participant's goodbye
 
 
 def die_with_parent() -> None:
@@ -89,6 +92,32 @@ def _watch_parent(stop: _StopSignal) -> None:
     threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
+def _participant_keeper(rt):
+    """A hidden node without endpoints that keeps this process's DDS participant alive.
+
+    rmw_fastrtps deletes the participant, and sends its goodbye, when the last node of the
+    context is destroyed: in the same instant as the graph updates that say the nodes are gone.
+    The kernel handles the two in separate threads. If it drops the participant first, and only
+    then applies an update that still lists a node, it re-adds that node for good: a ghost no
+    lease can remove (rmw_dds_common's ``update_participant_entities`` re-creates an unknown
+    participant). With the keeper, the nodes leave first and the goodbye follows
+    :data:`DEPARTURE_S` later; the keeper's own last update lists no node.
+    """
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    rt.start()
+    with rt.context.handle:
+        return rclpy_implementation.Node(KEEPER_NODE, "", rt.context.handle, None, False, False)
+
+
+def _leave(rt, keeper, served: bool) -> None:
+    """Destroy the nodes; :data:`DEPARTURE_S` later, end the participant (the keeper goes last)."""
+    rt.stop()
+    if served:
+        time.sleep(DEPARTURE_S)
+    keeper.destroy_when_not_in_use()
+
+
 def run(spec: str, kwargs: dict) -> int:
     """Run a target in this process's course runtime; the process's exit code."""
     from rclpy.node import Node
@@ -99,6 +128,8 @@ def run(spec: str, kwargs: dict) -> int:
     _watch_parent(stop)
     target = load_target(spec)
     rt = get_runtime()
+    keeper = _participant_keeper(rt)
+    served = False
     try:
         try:
             result = rt.build(target, **kwargs)
@@ -110,7 +141,7 @@ def run(spec: str, kwargs: dict) -> int:
             return 0
         for node in nodes:
             rt.add(node, console=False)
-        stop.serving = True
+        stop.serving = served = True
         report("ready", nodes=[n.get_fully_qualified_name() for n in nodes], pid=os.getpid())
         print(f"child {os.getpid()} ready: {[n.get_fully_qualified_name() for n in nodes]}", flush=True)
         while not stop.event.wait(3600):  # interruptible: the handler sets the event
@@ -118,7 +149,7 @@ def run(spec: str, kwargs: dict) -> int:
         return 0
     finally:
         stop.serving = True  # a second signal during the clean-up must not cut it short
-        rt.stop()
+        _leave(rt, keeper, served)
 
 
 def become(program: str, args: list[str]) -> None:
