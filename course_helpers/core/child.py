@@ -105,17 +105,16 @@ def _participant_keeper(rt):
     """
     from rclpy.impl.implementation_singleton import rclpy_implementation
 
-    rt.start()
     with rt.context.handle:
         return rclpy_implementation.Node(KEEPER_NODE, "", rt.context.handle, None, False, False)
 
 
-def _leave(rt, keeper, served: bool) -> None:
+def _leave(rt, keeper) -> None:
     """Destroy the nodes; :data:`DEPARTURE_S` later, end the participant (the keeper goes last)."""
     rt.stop()
-    if served:
+    if keeper is not None:
         time.sleep(DEPARTURE_S)
-    keeper.destroy_when_not_in_use()
+        keeper.destroy_when_not_in_use()
 
 
 def run(spec: str, kwargs: dict) -> int:
@@ -128,8 +127,7 @@ def run(spec: str, kwargs: dict) -> int:
     _watch_parent(stop)
     target = load_target(spec)
     rt = get_runtime()
-    keeper = _participant_keeper(rt)
-    served = False
+    keeper = None
     try:
         try:
             result = rt.build(target, **kwargs)
@@ -141,7 +139,8 @@ def run(spec: str, kwargs: dict) -> int:
             return 0
         for node in nodes:
             rt.add(node, console=False)
-        stop.serving = served = True
+        keeper = _participant_keeper(rt)
+        stop.serving = True
         report("ready", nodes=[n.get_fully_qualified_name() for n in nodes], pid=os.getpid())
         print(f"child {os.getpid()} ready: {[n.get_fully_qualified_name() for n in nodes]}", flush=True)
         while not stop.event.wait(3600):  # interruptible: the handler sets the event
@@ -149,7 +148,7 @@ def run(spec: str, kwargs: dict) -> int:
         return 0
     finally:
         stop.serving = True  # a second signal during the clean-up must not cut it short
-        _leave(rt, keeper, served)
+        _leave(rt, keeper)
 
 
 def become(program: str, args: list[str]) -> None:
