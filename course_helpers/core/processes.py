@@ -38,7 +38,7 @@ from course_helpers.core.dds_config import environment_snapshot
 from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
-STOP_GRACE_S = 5.0  # s; SIGTERM, then SIGKILL after this long (a clean stop takes about 0.2 s, and
+STOP_GRACE_S = 5.0  # s; SIGTERM, then SIGKILL after this long (a clean stop takes about 0.4 s, and
 # seconds on a loaded machine: a process killed before its goodbye stays in the graph for its lease)
 PARENT_ENV = "COURSE_PARENT_PID"
 OUTPUT_TAIL_CHARS = 2000
