@@ -11,6 +11,7 @@ from std_msgs.msg import String
 
 from course_helpers import CourseError, WaitTimeout
 from course_helpers.core import child as child_module
+from course_helpers.core.names import full_name
 from course_helpers.nodes import Listener, Talker, make_relay
 
 from .conftest import run_python
@@ -112,19 +113,36 @@ def test_a_stopping_childs_nodes_leave_before_its_participant(rt):
     """
     import threading
 
+    def listed():  # rclpy's own listing: graph_nodes() leaves out the keeper, which has no endpoints
+        return {full_name(namespace, name) for name, namespace in rt.graph.get_node_names_and_namespaces()}
+
     rt.spawn("leaving", Talker, {"name": "leaving_talker"}, wait_for="/leaving_talker")
     keeper = "/" + child_module.KEEPER_NODE
-    assert keeper in rt.graph_nodes(include_hidden=True)
+    assert keeper in listed()
     stopper = threading.Thread(target=rt.stop_child, args=("leaving",))
     stopper.start()
     order = []
     for name in ("/leaving_talker", keeper):
-        rt.wait_until(lambda name=name: name not in rt.graph_nodes(include_hidden=True), 10,
-                      f"{name} to leave the graph")
-        order.append((name, keeper in rt.graph_nodes(include_hidden=True)))
+        rt.wait_until(lambda name=name: name not in listed(), 10, f"{name} to leave the graph")
+        order.append((name, keeper in listed()))
     stopper.join()
     # when the talker had gone, the keeper (the participant) was still there; then it went too
     assert order == [("/leaving_talker", True), (keeper, False)]
+
+
+def test_graph_nodes_leave_out_a_node_without_endpoints(rt):
+    """rmw can keep listing a node whose process has left; such an entry has no endpoints."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    rt.add(Talker, name="with_endpoints")
+    with rt.context.handle:  # a bare rcl node: listed by rmw, but without a single endpoint
+        bare = rclpy_implementation.Node("no_endpoints", "", rt.context.handle, None, False, False)
+    try:
+        listed = {full_name(ns, name) for name, ns in rt.graph.get_node_names_and_namespaces()}
+        assert {"/no_endpoints", "/with_endpoints"} <= listed
+        assert "/with_endpoints" in rt.graph_nodes() and "/no_endpoints" not in rt.graph_nodes()
+    finally:
+        bare.destroy_when_not_in_use()
 
 
 def test_child_stopped_mid_callback_still_exits_cleanly(rt):

@@ -365,8 +365,15 @@ class CourseRuntime(ChildProcesses):
 
     # ------------------------------------------------------------------ the graph
     def graph_nodes(self, include_hidden: bool = False) -> list[str]:
-        """Full names of all nodes discovered in this domain (the live graph)."""
-        return node_full_names(self._graph_node().get_node_names_and_namespaces(), include_hidden)
+        """Full names of all nodes discovered in this domain (the live graph).
+
+        A node listed without a single endpoint is left out. rclpy gives every node at least its
+        ``/parameter_events`` publisher, so such an entry is either a node still being created or
+        one that rmw keeps listing after its process has left (see :mod:`.child` on the goodbye
+        that overtakes a node's last graph update).
+        """
+        names = node_full_names(self._graph_node().get_node_names_and_namespaces(), include_hidden)
+        return [fqn for fqn in names if any(self._graph_entry(fqn))]
 
     @property
     def graph(self) -> Node:
