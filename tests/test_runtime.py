@@ -12,6 +12,7 @@ from std_msgs.msg import String
 from course_helpers import CourseError, WaitTimeout
 from course_helpers.core import child as child_module
 from course_helpers.core.names import full_name
+from course_helpers.core.node_hook import bare_node
 from course_helpers.nodes import Listener, Talker, make_relay
 
 from .conftest import run_python
@@ -132,11 +133,8 @@ def test_a_stopping_childs_nodes_leave_before_its_participant(rt):
 
 def test_graph_nodes_leave_out_a_node_without_endpoints(rt):
     """rmw can keep listing a node whose process has left; such an entry has no endpoints."""
-    from rclpy.impl.implementation_singleton import rclpy_implementation
-
     rt.add(Talker, name="with_endpoints")
-    with rt.context.handle:  # a bare rcl node: listed by rmw, but without a single endpoint
-        bare = rclpy_implementation.Node("no_endpoints", "", rt.context.handle, None, False, False)
+    bare = bare_node(rt.context, "no_endpoints")  # listed by rmw, but without a single endpoint
     try:
         listed = {full_name(ns, name) for name, ns in rt.graph.get_node_names_and_namespaces()}
         assert {"/no_endpoints", "/with_endpoints"} <= listed

@@ -103,10 +103,9 @@ def _participant_keeper(rt):
     participant). With the keeper, the nodes leave first and the goodbye follows
     :data:`DEPARTURE_S` later; the keeper's own last update lists no node.
     """
-    from rclpy.impl.implementation_singleton import rclpy_implementation
+    from course_helpers.core.node_hook import bare_node
 
-    with rt.context.handle:
-        return rclpy_implementation.Node(KEEPER_NODE, "", rt.context.handle, None, False, False)
+    return bare_node(rt.context, KEEPER_NODE)
 
 
 def _leave(rt, keeper) -> None:

@@ -105,3 +105,15 @@ def destroy_fully(node: Node) -> None:
     for waitable in list(node.waitables):
         if isinstance(waitable, (ActionServer, ActionClient)):
             waitable.destroy()
+
+
+def bare_node(context, name: str):
+    """An rcl node without a single endpoint (no rosout, no parameter services or events).
+
+    rmw lists it in the graph, and it keeps the context's participant alive; it is the
+    ``rclpy`` handle, not a ``Node``. End it with ``destroy_when_not_in_use()``.
+    """
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    with context.handle:
+        return rclpy_implementation.Node(name, "", context.handle, None, False, False)
