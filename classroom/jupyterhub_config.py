@@ -8,9 +8,9 @@
 #   started from the course's venv, which students can run but not change;
 # * their own working copy of the notebooks in ~/ros2-course-work, brought up to date with the
 #   course at every server start without losing their edits (tools/working_copy.py);
-# * a ROS domain of its own for every kernel: the course reserves one machine-wide with lock files in
-#   the sticky /tmp/ros2-course-domains (course_helpers/core/domains.py), and discovery stays on this
-#   host, so two students' nodes never see each other. Domains 1-101 are free for the course, so at
+# * a ROS domain of its own for every kernel: the course reserves one machine-wide with an abstract
+#   Unix socket per domain (course_helpers/core/domains.py), and discovery stays on this host, so two
+#   students' kernels never share a domain. Domains 1-101 are free for the course, so at
 #   most about 100 kernels can run at once; idle kernels are shut down (below) to give theirs back.
 #
 # Settings come from the environment, so the same file serves the test (tests/test_classroom_hub.py):

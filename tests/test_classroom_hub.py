@@ -20,7 +20,6 @@ is opened up. configurable-http-proxy comes from npm:
 
 from __future__ import annotations
 
-import fcntl
 import json
 import os
 import pwd
@@ -40,7 +39,7 @@ from pathlib import Path
 import pytest
 
 from course_helpers.core.dds_config import udp_loopback_env
-from course_helpers.core.domains import lock_dir
+from course_helpers.core.domains import domain_free, domain_holders
 from course_helpers.core.waiting import poll_until
 
 REPO = Path(__file__).resolve().parent.parent
@@ -157,29 +156,6 @@ def _describe(pids: list[int]) -> list[str]:
         except (psutil.Error, OSError):
             pass
     return described
-
-
-def _domain_holders(domain: int) -> set[int]:
-    """PIDs that hold the flock on a domain's lock file (from /proc/locks)."""
-    inode = os.stat(os.path.join(lock_dir(), f"domain-{domain}.lock")).st_ino
-    holders = set()
-    with open("/proc/locks", encoding="ascii") as locks:
-        for line in locks:
-            fields = line.split()
-            if len(fields) > 5 and fields[1] == "FLOCK" and fields[5].endswith(f":{inode}"):
-                holders.add(int(fields[4]))
-    return holders
-
-
-def _domain_is_free(domain: int) -> bool:
-    fd = os.open(os.path.join(lock_dir(), f"domain-{domain}.lock"), os.O_RDONLY)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return False  # held: by whom is asked next (another test may have taken it since)
-    finally:
-        os.close(fd)
-    return True
 
 
 class Hub:
@@ -456,7 +432,7 @@ def test_three_students_on_one_hub(hub, tmp_path):
 
         assert poll_until(nothing_left, 20), \
             f"{user}'s processes left after their server stopped: {_describe(left)}\n{hub.log_tail()}"
-        assert _domain_is_free(domains[user]) or _domain_holders(domains[user]).isdisjoint(before), \
+        assert domain_free(domains[user]) or domain_holders(domains[user]).isdisjoint(before), \
             f"domain {domains[user]} is still held by {user}'s processes"
     # ... because each server shut its kernel down (classroom/singleuser.py), not because the kernels
     # found themselves orphaned and quit without cleaning up.

@@ -236,3 +236,32 @@ def test_every_chapter_notebook_has_a_quiz_that_ran():
         assert quiz_cells, f"{os.path.basename(path)} has no quiz"
         outputs = quiz_cells[-1].get("outputs", [])
         assert outputs and all(o["output_type"] != "error" for o in outputs), os.path.basename(path)
+
+
+def _environment_criteria(env_changes: dict[str, str | None]) -> dict[str, bool]:
+    """Chapter 00's environment check in a fresh process with ``env_changes``: passed, by criterion."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ)
+    for key, value in env_changes.items():
+        env.pop(key, None) if value is None else env.__setitem__(key, value)
+    code = ("import json; from course_helpers import get_runtime; "
+            "from course_helpers.checks.ch00_environment import check_environment; "
+            "rt = get_runtime(); report = check_environment(rt); "
+            "print(json.dumps({c.name: c.passed for c in report.criteria})); rt.stop()")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_the_environment_check_passes_a_kernel_with_its_own_reserved_domain():
+    criteria = _environment_criteria({"ROS_DOMAIN_ID": None})
+    assert criteria["this kernel has its own ROS domain"], criteria
+
+
+def test_the_environment_check_fails_a_kernel_on_a_domain_set_by_hand():
+    criteria = _environment_criteria({"ROS_DOMAIN_ID": "0"})
+    assert not criteria["this kernel has its own ROS domain"], criteria

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import importlib
-import os
 import sys
 
 from course_helpers.checks import CheckReport
+from course_helpers.core.domains import held_here
 
 REQUIRED_MESSAGES = ["std_msgs.msg", "std_srvs.srv", "geometry_msgs.msg", "sensor_msgs.msg",
                      "test_msgs.action"]
@@ -35,8 +35,12 @@ def check_environment(rt=None) -> CheckReport:
     report.add("the course's own interfaces (course_interfaces) are built",
                _importable("course_interfaces.srv"),
                hint="Run `make lab` again; it builds interfaces/course_interfaces.")
-    isolated = status["domain_chosen_by"] == "automatic" or "ROS_DOMAIN_ID" in os.environ
-    report.add("this kernel has its own ROS domain", isolated)
+    domain = status["domain_id"]
+    reserved = status["domain_chosen_by"] == "automatic" and held_here(domain)
+    report.add("this kernel has its own ROS domain", reserved,
+               "" if reserved else f"domain {domain} was set with ROS_DOMAIN_ID, not reserved",
+               hint="Unset ROS_DOMAIN_ID and restart the kernel: the course then reserves a domain "
+                    "no other kernel on this machine uses.")
     report.add("discovery stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)",
                status["discovery_range"] == "LOCALHOST",
                hint="You chose another range yourself; other machines on your network may see "

@@ -1,22 +1,32 @@
 """A ROS domain of its own for every kernel, test worker and student on the machine (chapters 00, 07).
 
-Every course process that needs a domain reserves one that no other course process on
-the machine holds, whoever runs it: the reservations are lock files in one shared, sticky
-directory (``/tmp/ros2-course-domains``, mode 1777), and the operating system releases a
-lock when its process exits. On a classroom server, where every student is a Unix user,
-two students' kernels therefore never share a domain, even when their nodes talk over
-UDP. A user who sets ``ROS_DOMAIN_ID`` keeps full control. A reserved domain starts without
-the shared-memory ports that earlier processes left in it (:mod:`.shm_ports`). Discovery stays
-on this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless the user chose another range.
+Every course process that needs a domain reserves one that no other course process on the
+machine holds, whoever runs it. A reservation is a listening Unix socket bound to an abstract
+name, ``@ros2-course-domain-<N>`` (Linux's abstract namespace: no file, no directory). Linux
+gives each name to one socket at a time and frees it the moment its process exits, however it
+exits. So
+
+* nothing on disk decides a reservation: there is no file another user could delete, chmod,
+  pre-create or point elsewhere, and ``TMPDIR`` plays no part;
+* a crashed kernel leaves nothing to clean;
+* the only way to keep a domain from others is a live process holding its socket, which
+  ``ss -xlp | grep ros2-course-domain`` shows with its owner (docs/classroom.md).
+
+Abstract names belong to a network namespace: on a classroom server all students share one, a
+Kubernetes pod or a container with its own network has its own (and its own loopback, which is
+what really separates students there). On one host, domains keep honest kernels apart; a user
+who sets ``ROS_DOMAIN_ID`` on purpose keeps full control and can join any domain.
+
+A reserved domain starts without the shared-memory ports that earlier processes left in it
+(:mod:`.shm_ports`). Discovery stays on this machine (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``)
+unless the user chose another range.
 """
 
 from __future__ import annotations
 
 import errno
-import fcntl
 import os
-import stat
-import tempfile
+import socket
 from dataclasses import dataclass
 
 from course_helpers.core.errors import CourseError
@@ -26,8 +36,7 @@ from course_helpers.core.shm_ports import remove_dead_segments, remove_stale_por
 # ROS program uses, so the course starts at 1.
 FIRST_DOMAIN = 1
 LAST_DOMAIN = 101
-LOCK_DIR_ENV = "COURSE_DOMAIN_LOCK_DIR"  # tests point it elsewhere; one machine, one directory
-DEFAULT_LOCK_DIR = os.path.join(tempfile.gettempdir(), "ros2-course-domains")
+SOCKET_PREFIX = "ros2-course-domain-"  # + the domain: an abstract Unix socket name
 
 
 @dataclass
@@ -39,24 +48,33 @@ class DomainChoice:
     discovery_range: str
 
 
-_held: dict[int, int] = {}  # domain -> lock file descriptor, held for the life of the process
+_held: dict[int, socket.socket] = {}  # domain -> its bound socket, held for the life of the process
 _kernel_domain: list[int] = []  # the domain choose_domain() reserved for this process
 _spare_domain: list[int] = []  # a second domain, for chapter 07's isolation demo
 
 
-def lock_dir() -> str:
-    """The machine-wide directory of domain reservations (created sticky and world-writable)."""
-    path = os.environ.get(LOCK_DIR_ENV) or DEFAULT_LOCK_DIR
+def socket_name(domain: int) -> str:
+    """The abstract socket name that reserves ``domain`` (``ss -xlp`` shows it with a leading '@')."""
+    return f"{SOCKET_PREFIX}{domain}"
+
+
+def _bind(domain: int) -> socket.socket | None:
+    """A listening socket bound to ``domain``'s name, or None if another process holds the name.
+
+    The socket is not inherited by child programs (Python sockets are close-on-exec), so a
+    course child never keeps its kernel's domain after the kernel has gone.
+    """
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
-        os.mkdir(path, 0o777)
-        os.chmod(path, 0o1777)  # like /tmp: anyone may add a lock, nobody may remove another's
-    except FileExistsError:
-        pass
-    info = os.stat(path)
-    if not stat.S_ISDIR(info.st_mode):
-        raise CourseError(f"{path} should be the course's domain-lock directory but is not a "
-                          f"directory; remove it or set {LOCK_DIR_ENV} to another path.")
-    return path
+        sock.bind(b"\0" + socket_name(domain).encode())
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.EADDRINUSE:
+            return None
+        raise CourseError(f"could not reserve ROS domain {domain}: binding the abstract socket "
+                          f"@{socket_name(domain)} failed ({exc})") from None
+    sock.listen(1)  # listening, so that `ss -xlp` lists it with its owner; nobody ever connects
+    return sock
 
 
 def choose_domain() -> DomainChoice:
@@ -94,55 +112,27 @@ def parse_domain_id(value) -> int:
     return domain
 
 
-def _open_lock_file(path: str) -> int:
-    """Open a lock file for reading, creating it if needed, whoever created it first.
-
-    A file another user created in a sticky directory cannot be opened with O_CREAT on
-    Linux (``fs.protected_regular``), so an existing file is opened without it; ``flock``
-    needs only read access.
-    """
-    while True:
-        try:
-            return os.open(path, os.O_RDONLY)
-        except FileNotFoundError:
-            pass
-        try:
-            fd = os.open(path, os.O_RDONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        except FileExistsError:
-            continue  # another process created it just now: open it as it is
-        os.fchmod(fd, 0o644)  # whatever the umask: every user must be able to read it
-        return fd
-
-
 def reserve_domain(exclude: tuple[int, ...] = ()) -> int:
     """Reserve a domain no other course process on the machine holds, until this process exits.
 
     The kernel's own domain comes from here; chapter 07 reserves a second one to show isolation.
     """
-    directory = lock_dir()
     span = LAST_DOMAIN - FIRST_DOMAIN + 1
     start = os.getpid() % span
     for offset in range(span):
         domain = FIRST_DOMAIN + (start + offset) % span
         if domain in _held or domain in exclude:
             continue
-        try:
-            fd = _open_lock_file(os.path.join(directory, f"domain-{domain}.lock"))
-        except PermissionError:
-            continue  # unreadable: treat as held by someone else
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            os.close(fd)
-            if exc.errno in (errno.EWOULDBLOCK, errno.EACCES):
-                continue
-            raise
-        _held[domain] = fd
+        sock = _bind(domain)
+        if sock is None:
+            continue
+        _held[domain] = sock
         remove_stale_ports(domain)  # no course participant uses it: start it without old ports
         return domain
     raise CourseError(
-        f"all ROS domains {FIRST_DOMAIN}-{LAST_DOMAIN} are held by other course kernels on "
-        "this machine; shut some kernels down, or set ROS_DOMAIN_ID yourself."
+        f"all ROS domains {FIRST_DOMAIN}-{LAST_DOMAIN} are held by other course processes on this "
+        "machine. Shut some kernels down (the Running panel), or set ROS_DOMAIN_ID yourself. An "
+        f"administrator sees who holds them with: sudo ss -xlp | grep {SOCKET_PREFIX}"
     )
 
 
@@ -152,6 +142,38 @@ def reserve_spare_domain() -> int:
         own = os.environ.get("ROS_DOMAIN_ID")
         _spare_domain.append(reserve_domain(exclude=(int(own),) if own and own.isdigit() else ()))
     return _spare_domain[0]
+
+
+def held_here(domain: int) -> bool:
+    """True if this process holds ``domain``'s reservation (its socket is bound to the name)."""
+    sock = _held.get(domain)
+    if sock is None or sock.fileno() < 0:
+        return False
+    return sock.getsockname() in (b"\0" + socket_name(domain).encode(), "\0" + socket_name(domain))
+
+
+def domain_free(domain: int) -> bool:
+    """True if no process on the machine holds ``domain`` (tried by binding its name, released at once)."""
+    sock = _bind(domain)
+    if sock is None:
+        return False
+    sock.close()
+    return True
+
+
+def domain_holders(domain: int) -> set[int]:
+    """PIDs of the processes that hold ``domain``'s socket, among those this user may inspect."""
+    import psutil
+
+    wanted = "@" + socket_name(domain)
+    holders = set()
+    for proc in psutil.process_iter():
+        try:
+            if any(c.laddr == wanted for c in proc.net_connections(kind="unix")):
+                holders.add(proc.pid)
+        except psutil.Error:
+            continue
+    return holders
 
 
 def nodes_in_domain(domain_id: int, wait_s: float = 1.5, expect: list[str] | tuple = ()) -> list[str]:

@@ -35,9 +35,10 @@ from nbformat.v4 import new_output
 from nbgrader.preprocessors import Execute
 from traitlets import Integer, Unicode
 
+from course_helpers.core.domains import SOCKET_PREFIX
 from grading.isolation import kill_all
 
-LOCK_FILE = re.compile(r"domain-(\d+)\.lock$")
+DOMAIN_SOCKET = re.compile(r"^@" + re.escape(SOCKET_PREFIX) + r"(\d+)$")
 COURSE_CHILD = "course_helpers.core.child"  # how the course's process layer starts a child
 PARENT_ENV = "COURSE_PARENT_PID"  # set by that layer for a child that must die with the kernel
 
@@ -122,7 +123,7 @@ class GuardedExecute(Execute):
         return getattr(getattr(self.km, "provisioner", None), "pid", None)
 
     def _note_kernel(self) -> None:
-        """Remember the kernel's PID and the domain lock files it holds."""
+        """Remember the kernel's PID and the domains it holds (its reservation sockets)."""
         pid = self._kernel_pid()
         if pid is None:
             return
@@ -130,11 +131,11 @@ class GuardedExecute(Execute):
         if pid not in self._record["kernels"]:
             self._record["kernels"].append(pid)
         try:
-            for fd in os.listdir(f"/proc/{pid}/fd"):
-                match = LOCK_FILE.search(os.readlink(f"/proc/{pid}/fd/{fd}"))
+            for connection in psutil.Process(pid).net_connections(kind="unix"):
+                match = DOMAIN_SOCKET.match(connection.laddr or "")
                 if match and int(match.group(1)) not in self._record["domains"]:
                     self._record["domains"].append(int(match.group(1)))
-        except OSError:
+        except psutil.Error:
             pass
         if known != (self._record["kernels"], self._record["domains"]):
             self._save()

@@ -13,7 +13,6 @@ the marker - and :func:`domains_left` checks that the domains the kernel held ar
 from __future__ import annotations
 
 import ctypes
-import fcntl
 import os
 import shutil
 import tempfile
@@ -22,10 +21,10 @@ from dataclasses import dataclass, field
 
 import psutil
 
+from course_helpers.core.domains import domain_free, domain_holders
+
 PR_SET_CHILD_SUBREAPER = 36
 MARKER = "COURSE_GRADING_RUN"
-DOMAIN_LOCK_DIR = os.environ.get("COURSE_DOMAIN_LOCK_DIR") or os.path.join(
-    tempfile.gettempdir(), "ros2-course-domains")
 
 
 def become_subreaper() -> None:
@@ -62,7 +61,6 @@ def student_env(run: Run, student_build: str) -> dict[str, str | None]:
         "JUPYTER_RUNTIME_DIR": folders["runtime"],
         "MPLCONFIGDIR": folders["mpl"],
         "PYTHONPATH": student_build,
-        "COURSE_DOMAIN_LOCK_DIR": DOMAIN_LOCK_DIR,  # the machine-wide one, whatever TMPDIR says
         "ROS_DOMAIN_ID": None,
         "COURSE_PARENT_PID": None,
     }
@@ -123,23 +121,6 @@ def sweep(marker: str) -> list[str]:
     return described
 
 
-def domain_free(domain: int) -> bool:
-    """True if nobody holds ``domain``'s lock file (tried with a non-blocking lock, released at once)."""
-    path = os.path.join(DOMAIN_LOCK_DIR, f"domain-{domain}.lock")
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except FileNotFoundError:
-        return True
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        return True
-    except OSError:
-        return False
-    finally:
-        os.close(fd)
-
-
 def domains_left(domains: list[int], marker: str) -> list[int]:
     """The domains of ``domains`` still held by a process of the run (none after a clean sweep).
 
@@ -150,10 +131,9 @@ def domains_left(domains: list[int], marker: str) -> list[int]:
     for domain in domains:
         if domain_free(domain):
             continue
-        lock = os.path.join(DOMAIN_LOCK_DIR, f"domain-{domain}.lock")
-        for proc in psutil.process_iter():
+        for pid in domain_holders(domain):
             try:
-                if any(f.path == lock for f in proc.open_files()) and _carries(proc, marker):
+                if _carries(psutil.Process(pid), marker):
                     held.append(domain)
                     break
             except psutil.Error:
