@@ -29,6 +29,19 @@ def test_the_passing_report_runs_the_reference_against_real_nodes(rt, capsys):
     assert "class BatteryMonitor" not in shown
 
 
+def test_a_reference_that_fails_its_checker_is_an_error_not_a_passing_report(rt, capsys):
+    from course_helpers.checks import CheckReport
+
+    def failing(cls):
+        report = CheckReport("Battery server")
+        report.add("answers every request", False, "2 of 3 answered")
+        return report
+
+    with pytest.raises(CourseError, match="did not pass its own checker"):
+        show_passing_report(failing, "ch04_services", "BatteryMonitor")
+    assert "what passing looks like" not in capsys.readouterr().out
+
+
 def test_without_solutions_the_passing_report_says_why(capsys):
     assert show_passing_report(lambda cls: None, "ch99_missing", "Anything") is None
     assert "not available here" in capsys.readouterr().out

@@ -76,6 +76,7 @@ def show_passing_report(check, module: str, name: str):
     ``CheckReport``. The report is real: the checker runs the reference against real nodes just now.
     Displayed inside a closed ``<details>`` element, so a student opens it only when they want to.
     Returns the report, or None when this copy of the course has no solutions (a student release).
+    Raises :class:`CourseError` with the report when the reference does not pass.
     """
     from IPython.display import display
 
@@ -89,6 +90,9 @@ def show_passing_report(check, module: str, name: str):
     if not hasattr(report, "summary"):
         raise CourseError("show_passing_report: the check must return a CheckReport, "
                           f"got {type(report).__name__}")
+    if not report.passed:  # never save a failing reference under "what passing looks like"
+        raise CourseError(f"the reference solution {module}.{name} did not pass its own checker:\n"
+                          f"{report.summary()}")
     title = f"what passing looks like: {report.exercise}"
     body = (f"<details><summary>{html.escape(title.capitalize())} (the reference solution, checked "
             f"against real nodes; its code stays hidden)</summary>{report._repr_html_()}</details>")
