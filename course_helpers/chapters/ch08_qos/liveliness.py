@@ -15,8 +15,10 @@ from dataclasses import dataclass, field
 
 from course_helpers.chapters.ch08_qos.publishers import AliveTalker, LivelinessTalker
 from course_helpers.core.errors import CourseError
+from course_helpers.core.waiting import poll_until
 
 KINDS = ("automatic", "manual_by_topic")
+AFTER_NOT_ALIVE_S = 0.2  # s watched after the killed publisher was declared not alive
 
 
 @dataclass
@@ -56,7 +58,7 @@ def _since(monitor, start: float, until: float | None = None) -> dict[str, list[
 
 def kill_talker(rt, monitor, lease_s: float = 1.0, watch_s: float = 2.5) -> LivelinessResult:
     """Start :class:`AliveTalker` (AUTOMATIC liveliness, lease ``lease_s``, topic ``alive``) in a child
-    process, SIGKILL it once ``monitor`` got 3 messages, and watch for ``watch_s`` seconds.
+    process, SIGKILL it once ``monitor`` got 3 messages, and watch until the lease ran out.
 
     Args:
         rt: the kernel's runtime.
@@ -64,7 +66,8 @@ def kill_talker(rt, monitor, lease_s: float = 1.0, watch_s: float = 2.5) -> Live
             ``received`` (a message count) and ``changed`` ((time.monotonic(), alive_count,
             not_alive_count) of each liveliness-changed event). It is removed at the end.
         lease_s: the talker's liveliness lease.
-        watch_s: seconds watched after the kill.
+        watch_s: the longest watch after the kill; it ends 0.2 s after the subscription saw the
+            publisher not alive.
 
     The process cannot say goodbye: the subscription notices when the lease runs out without the
     participant's liveliness assertion. Returns a :class:`LivelinessResult` (times since the start).
@@ -74,14 +77,17 @@ def kill_talker(rt, monitor, lease_s: float = 1.0, watch_s: float = 2.5) -> Live
     child = rt.spawn("alive_talker", AliveTalker, params={"lease_s": lease_s}, wait_for="/alive_talker")
     try:
         rt.wait_until(lambda: monitor.received["automatic"] >= 3, 10.0, "messages from the child talker")
-        cut = time.monotonic() - start
+        killed_at = time.monotonic()
         child.kill()  # SIGKILL, as a crash would
-        time.sleep(watch_s)  # the lease runs out meanwhile
+        events = monitor.changed["automatic"]
+        # the lease runs out meanwhile
+        poll_until(lambda: any(t > killed_at and not_alive for t, _a, not_alive in events), watch_s)
+        time.sleep(AFTER_NOT_ALIVE_S)  # anything more the subscription would report
     finally:
         rt.stop_child("alive_talker")
         rt.remove(monitor)
-    return LivelinessResult(lease_s, cut, None, _since(monitor, start), [], dict(monitor.received),
-                            cut + watch_s)
+    return LivelinessResult(lease_s, killed_at - start, None, _since(monitor, start), [],
+                            dict(monitor.received), time.monotonic() - start)
 
 
 def watch_quiet_spell(rt, monitor, lease_s: float = 0.5, period_s: float = 0.1, quiet_from: float = 1.0,
