@@ -1,5 +1,7 @@
-"""Chapter 08a's new exercises: each checker accepts the reference solution and rejects wrong code,
-running real nodes (the student's in this process, the drivers in child processes)."""
+"""Chapter 08a's exercise checkers: each accepts the reference solution, and every criterion of every
+checker fails on a plausible wrong solution (real nodes: the student's in this process, the drivers
+in child processes). Wrong parts that fail different criteria share one run where the checker goes
+on after the first failure."""
 
 from __future__ import annotations
 
@@ -7,26 +9,239 @@ from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import QoSLivelinessPolicy, QoSProfile
-from std_msgs.msg import String
+from rclpy.qos import (
+    QoSDurabilityPolicy,
+    QoSHistoryPolicy,
+    QoSLivelinessPolicy,
+    QoSProfile,
+    QoSReliabilityPolicy,
+)
+from std_msgs.msg import Bool, String
 
-from course_helpers.checks.ch08_qos import check_deadline_watchdog, check_heartbeat
+from course_helpers.checks.ch08_qos import (
+    check_channel_qos,
+    check_deadline_watchdog,
+    check_heartbeat,
+    check_mismatched_subscriber,
+)
 from course_helpers.notebook.solution import solution_source
 from course_helpers.solutions import ch08_qos as reference
+
+CREATED = "the node can be created"
+BEST_EFFORT, RELIABLE = QoSReliabilityPolicy.BEST_EFFORT, QoSReliabilityPolicy.RELIABLE
+VOLATILE, TRANSIENT_LOCAL = QoSDurabilityPolicy.VOLATILE, QoSDurabilityPolicy.TRANSIENT_LOCAL
 
 
 def _failed(report) -> list[str]:
     return [c.name for c in report.criteria if not c.passed]
 
 
-# ---------------------------------------------------------------- wrong watchdogs
+# ---------------------------------------------------------------- 08.1: QoS for four channels
+CAMERA_FRESH = "camera: frames stay fresh at a consumer that needs 150 ms per frame (median age < 250 ms)"
+
+
+def test_channel_checker_accepts_the_reference_solution_and_its_report_names_no_choice(rt):
+    report = check_channel_qos(reference.channel_qos(), rt)
+    assert report.passed, report.summary()
+    assert rt.nodes() == [] and rt.children() == {}
+    # what passing looks like (saved in the notebook) says what was checked, not which QoS passed it
+    text = report.summary()
+    for choice in ("BEST_EFFORT", "KEEP_LAST", "VOLATILE", "you chose"):
+        assert choice not in text, text
+    assert "RELIABLE" not in text.replace("RELIABLE subscription", "").replace("RELIABLE + TRANSIENT", "")
+
+
+def test_channel_checker_rejects_what_is_not_one_profile_per_channel(rt):
+    not_a_dict = check_channel_qos(list(reference.channel_qos().values()), rt)
+    assert _failed(not_a_dict) == ["profiles is a dict of channel -> QoSProfile"], not_a_dict.summary()
+    unfinished = check_channel_qos({"camera": QoSProfile(depth=1), "lidar": None}, rt)
+    assert _failed(unfinished) == ["one QoSProfile for each of camera, lidar, joint_states, estop"]
+
+
+def test_channel_checker_rejects_resending_queueing_latching_and_lossy_choices(rt):
+    wrong = {  # everything reliable and kept where it should not be, lossy where it must not be
+        "camera": QoSProfile(history=QoSHistoryPolicy.KEEP_ALL, reliability=RELIABLE),
+        "lidar": QoSProfile(history=QoSHistoryPolicy.KEEP_ALL, reliability=RELIABLE,
+                            durability=TRANSIENT_LOCAL),
+        "joint_states": QoSProfile(depth=10, reliability=BEST_EFFORT),
+        "estop": QoSProfile(depth=1, reliability=BEST_EFFORT, durability=VOLATILE),
+    }
+    report = check_channel_qos(wrong, rt)
+    assert _failed(report) == [
+        "camera: a lost frame is not resent (a late frame is worthless)",
+        CAMERA_FRESH,
+        "lidar: a consumer with your profile receives scans from a driver that publishes with "
+        "qos_profile_sensor_data",
+        "lidar: a node that starts later gets no old scan",
+        "lidar: only recent scans are queued (a depth of 10 at most)",
+        "joint_states: robot_state_publisher's RELIABLE subscription receives them",
+        "estop: a press lost on the way is sent again",
+        "estop: a controller that starts after the button was pressed still gets it",
+        "estop: a safety monitor requesting RELIABLE + TRANSIENT_LOCAL connects",
+    ], report.summary()
+
+
+def test_channel_checker_measures_the_stale_frames_behind_a_deep_camera_queue(rt):
+    profiles = {**reference.channel_qos(), "camera": QoSProfile(depth=30, reliability=BEST_EFFORT)}
+    report = check_channel_qos(profiles, rt)
+    assert _failed(report) == [CAMERA_FRESH], report.summary()
+    fresh = next(c for c in report.criteria if c.name == CAMERA_FRESH)
+    assert fresh.detail.startswith("median age") and "KEEP_LAST" not in fresh.detail
+
+
+# ---------------------------------------------------------------- 08.2: the mismatched subscriber
+class _Listener(Node):
+    """Keeps each command's text; the QoS and topic are given, so that each wrong variant changes one."""
+
+    def __init__(self, qos=None, topic="/robot_cmd"):
+        super().__init__("robot_listener")
+        self.received = []
+        self.subscription = self.create_subscription(
+            String, topic, self.on_cmd, qos or QoSProfile(depth=10, reliability=BEST_EFFORT))
+
+    def on_cmd(self, msg):
+        self.received.append(msg.data)
+
+
+class StarterListener(_Listener):
+    """The starting code: reliable and transient local, which the controller does not offer."""
+
+    def __init__(self):
+        super().__init__(QoSProfile(depth=10, reliability=RELIABLE, durability=TRANSIENT_LOCAL))
+
+
+class NamedListener(_Listener):
+    """Its constructor wants an argument the checker cannot give."""
+
+    def __init__(self, name):
+        super().__init__()
+
+
+class TypoListener(_Listener):
+    def __init__(self):
+        super().__init__(topic="/robot_command")
+
+
+class ForgetfulListener(_Listener):
+    """Compatible, but keeps nothing."""
+
+    def on_cmd(self, msg):
+        pass
+
+
+class RenamedListener(Node):
+    """Compatible, but keeps the commands in self.commands."""
+
+    def __init__(self):
+        super().__init__("robot_listener")
+        self.commands = []
+        self.create_subscription(String, "/robot_cmd", lambda m: self.commands.append(m.data),
+                                 QoSProfile(depth=10, reliability=BEST_EFFORT))
+
+
+class WholeMessageListener(_Listener):
+    """Keeps the message objects instead of the commands they carry."""
+
+    def on_cmd(self, msg):
+        self.received.append(msg)
+
+
+def test_mismatched_subscriber_checker_accepts_the_reference_solution(rt):
+    report = check_mismatched_subscriber(reference.RobotCmdListener, rt)
+    assert report.passed, report.summary()
+    assert rt.nodes() == [] and rt.children() == {}
+
+
+def test_mismatched_subscriber_checker_rejects_the_starting_code_without_giving_the_fix(rt):
+    report = check_mismatched_subscriber(StarterListener, rt)
+    assert _failed(report) == ["its QoS is compatible with what the publisher offers",
+                               "its callback gets the commands (3 within 3 s)"], report.summary()
+    compatible = report.criteria[1]
+    assert "reliability" in compatible.detail and "durability" in compatible.detail
+    for answer in ("best_effort", "volatile", "BEST_EFFORT", "VOLATILE"):  # what to write is not said
+        assert answer not in compatible.detail + compatible.hint
+    assert rt.nodes() == [] and rt.children() == {}
+
+
+def test_mismatched_subscriber_checker_rejects_each_wrong_part(rt):
+    expected = {
+        NamedListener: "the node starts",
+        TypoListener: "it subscribes to /robot_cmd",
+        RenamedListener: "it keeps what it receives in self.received",
+        ForgetfulListener: "its callback gets the commands (3 within 3 s)",
+        WholeMessageListener: "they are the controller's commands",
+    }
+    for wrong, criterion in expected.items():
+        report = check_mismatched_subscriber(wrong, rt)
+        assert _failed(report) == [criterion], (wrong.__name__, report.summary())
+
+
+# ---------------------------------------------------------------- 08.3: the deadline watchdog
+WATCHED = QoSProfile(depth=10, deadline=Duration(seconds=0.5))
+
+
+class _Watchdog(Node):
+    """A right watchdog whose parts the wrong ones below change one at a time."""
+
+    def __init__(self, qos=WATCHED, odom_type=Odometry, alarm_type=String):
+        super().__init__("odom_watchdog")
+        self.alarm_type = alarm_type
+        self.alarm = self.create_publisher(alarm_type, "alarm", 10)
+        self.subscription = self.create_subscription(
+            odom_type, "odom", lambda _m: None, qos,
+            event_callbacks=SubscriptionEventCallbacks(deadline=self.on_deadline_missed))
+
+    def on_deadline_missed(self, _status) -> None:
+        self.alarm.publish(self.alarm_type())
+
+
+class NamedWatchdog(_Watchdog):
+    def __init__(self, name):
+        super().__init__()
+
+
+class StringOdomWatchdog(_Watchdog):
+    def __init__(self):
+        super().__init__(odom_type=String)
+
+
 class TimerWatchdog(Node):
     """Watches /odom with a timer of its own instead of a QoS deadline."""
 
     def __init__(self):
         super().__init__("odom_watchdog")
+        self.last = None
         self.alarm = self.create_publisher(String, "alarm", 10)
-        self.subscription = self.create_subscription(Odometry, "odom", lambda _m: None, 10)
+        self.subscription = self.create_subscription(Odometry, "odom", self.on_odom, 10)
+        self.timer = self.create_timer(0.1, self.check)  # period in seconds
+
+    def on_odom(self, _msg) -> None:
+        self.last = self.get_clock().now()
+
+    def check(self) -> None:
+        if self.last and (self.get_clock().now() - self.last).nanoseconds > 0.5e9:
+            self.alarm.publish(String(data="no odometry"))
+
+
+class BeltAndBracesWatchdog(TimerWatchdog):
+    """Requests the deadline, but still watches with a timer of its own."""
+
+    def __init__(self):
+        super().__init__()
+        self.destroy_subscription(self.subscription)
+        self.subscription = self.create_subscription(Odometry, "odom", self.on_odom, WATCHED)
+
+
+class LatchedWatchdog(_Watchdog):
+    """Asks for the last odometry on joining (transient local), which the driver does not offer."""
+
+    def __init__(self):
+        super().__init__(QoSProfile(depth=10, deadline=Duration(seconds=0.5), durability=TRANSIENT_LOCAL))
+
+
+class BoolAlarmWatchdog(_Watchdog):
+    def __init__(self):
+        super().__init__(alarm_type=Bool)
 
 
 class SilentWatchdog(Node):
@@ -35,58 +250,78 @@ class SilentWatchdog(Node):
     def __init__(self):
         super().__init__("odom_watchdog")
         self.alarm = self.create_publisher(String, "alarm", 10)
-        self.subscription = self.create_subscription(
-            Odometry, "odom", lambda _m: None, QoSProfile(depth=10, deadline=Duration(seconds=0.5)))
+        self.subscription = self.create_subscription(Odometry, "odom", lambda _m: None, WATCHED)
 
 
-class NoisyWatchdog(Node):
-    """Requests the deadline, and sounds the alarm on every message (and on every missed deadline)."""
+class NoisyWatchdog(_Watchdog):
+    """Sounds the alarm on every message (and on every missed deadline)."""
 
     def __init__(self):
-        super().__init__("odom_watchdog")
-        self.alarm = self.create_publisher(String, "alarm", 10)
+        super().__init__()
+        self.destroy_subscription(self.subscription)
         self.subscription = self.create_subscription(
-            Odometry, "odom", self.ring, QoSProfile(depth=10, deadline=Duration(seconds=0.5)),
-            event_callbacks=SubscriptionEventCallbacks(deadline=self.ring))
-
-    def ring(self, _what) -> None:
-        self.alarm.publish(String(data="alarm"))
+            Odometry, "odom", self.on_deadline_missed, WATCHED,
+            event_callbacks=SubscriptionEventCallbacks(deadline=self.on_deadline_missed))
 
 
 def test_watchdog_checker_accepts_the_reference_solution(rt):
     report = check_deadline_watchdog(reference.OdomWatchdog, rt)
     assert report.passed, report.summary()
+    assert rt.nodes() == [] and rt.children() == {}
 
 
-def test_watchdog_checker_rejects_a_watchdog_without_a_deadline(rt):
-    report = check_deadline_watchdog(TimerWatchdog, rt)
-    assert _failed(report) == ["the subscription requests a deadline (0.2 s to 1 s)"], report.summary()
+def test_watchdog_checker_rejects_each_wrong_part_before_running_the_driver(rt):
+    expected = {
+        NamedWatchdog: CREATED,
+        StringOdomWatchdog: "it subscribes to /odom (nav_msgs/msg/Odometry)",
+        TimerWatchdog: "the subscription requests a deadline (0.2 s to 1 s)",
+        BeltAndBracesWatchdog: "it leaves the watching to DDS (no timer of its own)",
+        LatchedWatchdog: "its QoS is compatible with the odometry driver (reliable, deadline 0.2 s)",
+        BoolAlarmWatchdog: "it publishes on /alarm (std_msgs/msg/String)",
+    }
+    for wrong, criterion in expected.items():
+        report = check_deadline_watchdog(wrong, rt)
+        assert _failed(report) == [criterion], (wrong.__name__, report.summary())
+    assert rt.children() == {}
 
 
 def test_watchdog_checker_rejects_a_watchdog_that_never_alarms_or_always_does(rt):
     silent = check_deadline_watchdog(SilentWatchdog, rt)
     assert _failed(silent) == ["an alarm within 1.5 s after the odometry stopped"], silent.summary()
     noisy = check_deadline_watchdog(NoisyWatchdog, rt)
-    failed = _failed(noisy)
-    assert "no alarm while odometry arrives every 0.1 s" in failed, noisy.summary()
-    assert "no alarm once odometry flows again" in failed, noisy.summary()
+    assert _failed(noisy) == ["no alarm while odometry arrives every 0.1 s",
+                              "no alarm once odometry flows again"], noisy.summary()
 
 
-# ---------------------------------------------------------------- wrong heartbeats and monitors
-class StubbornHeartbeat(reference.SwitchableHeartbeat):
-    """Ignores the command to stop."""
-
-    def on_enable(self, msg) -> None:
-        pass
+# ---------------------------------------------------------------- 08.4: heartbeat and monitor
+BEAT = reference.HEARTBEAT_QOS
 
 
-class SeldomHeartbeat(reference.SwitchableHeartbeat):
-    """Asserts every 2 s, four times the 0.5 s lease it promises."""
+class NamedHeartbeat(reference.SwitchableHeartbeat):
+    def __init__(self, name):
+        super().__init__()
+
+
+class NamedMonitor(reference.HeartbeatMonitor):
+    def __init__(self, name):
+        super().__init__()
+
+
+class BoolHeartbeat(Node):
+    """Beats on /heartbeat with the wrong type."""
+
+    def __init__(self):
+        super().__init__("heartbeat")
+        self.publisher = self.create_publisher(Bool, "heartbeat", BEAT)
+
+
+class MisspeltMonitor(reference.HeartbeatMonitor):
+    """Watches /heartbeats instead of /heartbeat."""
 
     def __init__(self):
         super().__init__()
-        self.destroy_timer(self.timer)
-        self.timer = self.create_timer(2.0, self.beat)  # period in seconds
+        self.destroy_subscription(self.subscription)
+        self.subscription = self.create_subscription(String, "heartbeats", self.on_beat, BEAT)
 
 
 class AutomaticHeartbeat(Node):
@@ -99,40 +334,143 @@ class AutomaticHeartbeat(Node):
         self.publisher = self.create_publisher(String, "heartbeat", qos)
 
 
+class ImpatientMonitor(reference.HeartbeatMonitor):
+    """Requests a 0.2 s lease, shorter than the 0.5 s the heartbeat promises."""
+
+    def __init__(self):
+        super().__init__()
+        self.destroy_subscription(self.subscription)
+        impatient = QoSProfile(depth=1, liveliness=QoSLivelinessPolicy.MANUAL_BY_TOPIC,
+                               liveliness_lease_duration=Duration(seconds=0.2))
+        self.subscription = self.create_subscription(
+            String, "heartbeat", self.on_beat, impatient,
+            event_callbacks=SubscriptionEventCallbacks(liveliness=self.on_liveliness))
+
+
+class DeafHeartbeat(reference.SwitchableHeartbeat):
+    """Beats, but listens to no command."""
+
+    def __init__(self):
+        super().__init__()
+        self.destroy_subscription(self.enable)
+
+
+class MuteMonitor(reference.HeartbeatMonitor):
+    """Watches, but has no status publisher (it only logs)."""
+
+    def __init__(self):
+        super().__init__()
+        self.destroy_publisher(self.status)
+
+
+class NeverBeatingHeartbeat(reference.SwitchableHeartbeat):
+    """Its timer never asserts: it starts disabled and waits for a True."""
+
+    def __init__(self):
+        super().__init__()
+        self.beating = False
+
+
+class AlarmistMonitor(reference.HeartbeatMonitor):
+    """Says 'lost' on every liveliness event, the first 'alive' included."""
+
+    def on_liveliness(self, status) -> None:
+        self.status.publish(String(data="lost"))
+        if status.alive_count_change > 0:
+            self.status.publish(String(data="alive"))
+
+
+class SeldomHeartbeat(reference.SwitchableHeartbeat):
+    """Asserts every 2 s, four times the 0.5 s lease it promises."""
+
+    def __init__(self):
+        super().__init__()
+        self.destroy_timer(self.timer)
+        self.timer = self.create_timer(2.0, self.beat)  # period in seconds
+
+
+class LostOnlyMonitor(reference.HeartbeatMonitor):
+    """Reports losses, never a return."""
+
+    def on_liveliness(self, status) -> None:
+        if status.not_alive_count_change > 0:
+            self.status.publish(String(data="lost"))
+
+
+class StubbornHeartbeat(reference.SwitchableHeartbeat):
+    """Ignores the command to stop."""
+
+    def on_enable(self, msg) -> None:
+        pass
+
+
 class DeafMonitor(Node):
     """Subscribes to the heartbeat and publishes a status topic, but has no liveliness callback."""
 
     def __init__(self):
         super().__init__("heartbeat_monitor")
         self.status = self.create_publisher(String, "heartbeat/status", 10)
-        self.subscription = self.create_subscription(String, "heartbeat", lambda _m: None,
-                                                     reference.HEARTBEAT_QOS)
+        self.subscription = self.create_subscription(String, "heartbeat", lambda _m: None, BEAT)
+
+
+class OneWayHeartbeat(reference.SwitchableHeartbeat):
+    """Stops on False, and never starts again."""
+
+    def on_enable(self, msg) -> None:
+        if not msg.data:
+            self.beating = False
 
 
 def test_heartbeat_checker_accepts_the_reference_solution(rt):
     report = check_heartbeat(reference.SwitchableHeartbeat, reference.HeartbeatMonitor, rt)
     assert report.passed, report.summary()
+    assert rt.nodes() == [] and rt.children() == {}
+
+
+def test_heartbeat_checker_rejects_wrong_endpoints_and_qos(rt):
+    expected = {
+        (NamedHeartbeat, NamedMonitor): [CREATED, CREATED],
+        (BoolHeartbeat, MisspeltMonitor): [
+            "heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)",
+            "monitor: it subscribes to /heartbeat (std_msgs/msg/String)"],
+        (AutomaticHeartbeat, ImpatientMonitor): ["heartbeat: MANUAL_BY_TOPIC with a lease of at most 1 s",
+                                                 "monitor: compatible with a MANUAL_BY_TOPIC heartbeat, "
+                                                 "lease 0.5 s"],
+        (DeafHeartbeat, MuteMonitor): ["heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
+                                       "monitor: it publishes on /heartbeat/status (std_msgs/msg/String)"],
+    }
+    for (heartbeat, monitor), criteria in expected.items():
+        report = check_heartbeat(heartbeat, monitor, rt)
+        assert _failed(report) == criteria, (heartbeat.__name__, monitor.__name__, report.summary())
+    assert rt.children() == {}
+
+
+def test_heartbeat_checker_rejects_a_silent_heartbeat_and_an_alarmist_monitor(rt):
+    report = check_heartbeat(NeverBeatingHeartbeat, AlarmistMonitor, rt)
+    assert _failed(report) == ["heartbeat: a monitor sees it alive",
+                               "monitor: says nothing is lost while the heartbeat asserts every 0.1 s"], \
+        report.summary()
+
+
+def test_heartbeat_checker_rejects_a_seldom_heartbeat_and_a_monitor_that_never_says_alive(rt):
+    report = check_heartbeat(SeldomHeartbeat, LostOnlyMonitor, rt)
+    assert _failed(report) == ["heartbeat: still alive two leases later",
+                               "monitor: publishes 'alive' when the heartbeat is back"], report.summary()
 
 
 def test_heartbeat_checker_rejects_a_heartbeat_that_ignores_the_command_and_a_deaf_monitor(rt):
     report = check_heartbeat(StubbornHeartbeat, DeafMonitor, rt)
-    failed = _failed(report)
-    assert "heartbeat: lost within 2 s of a False on /heartbeat/enable" in failed, report.summary()
-    assert "monitor: publishes 'lost' within 2 s after the heartbeat stopped" in failed, report.summary()
-    assert "monitor: publishes 'alive' when the heartbeat is back" in failed, report.summary()
-    assert "heartbeat: a monitor sees it alive" not in failed  # the parts that are right pass
+    assert _failed(report) == ["heartbeat: lost within 2 s of a False on /heartbeat/enable",
+                               "monitor: publishes 'lost' within 2 s after the heartbeat stopped",
+                               "monitor: publishes 'alive' when the heartbeat is back"], report.summary()
 
 
-def test_heartbeat_checker_rejects_a_heartbeat_that_asserts_too_seldom(rt):
-    report = check_heartbeat(SeldomHeartbeat, reference.HeartbeatMonitor, rt)
-    assert _failed(report) == ["heartbeat: still alive two leases later"], report.summary()
-
-
-def test_heartbeat_checker_rejects_automatic_liveliness(rt):
-    report = check_heartbeat(AutomaticHeartbeat, reference.HeartbeatMonitor, rt)
-    assert _failed(report) == ["heartbeat: MANUAL_BY_TOPIC with a lease of at most 1 s"], report.summary()
+def test_heartbeat_checker_rejects_a_heartbeat_that_never_comes_back(rt):
+    report = check_heartbeat(OneWayHeartbeat, reference.HeartbeatMonitor, rt)
+    assert _failed(report) == ["heartbeat: alive again after a True"], report.summary()
 
 
 def test_the_solutions_are_offered_by_show_solution():
-    for name in ("OdomWatchdog", "SwitchableHeartbeat", "HeartbeatMonitor"):
+    for name in ("RobotCmdListener", "OdomWatchdog", "SwitchableHeartbeat", "HeartbeatMonitor"):
         assert f"class {name}(Node)" in solution_source("ch08_qos", name)
+    assert "def channel_qos()" in solution_source("ch08_qos", "channel_qos")

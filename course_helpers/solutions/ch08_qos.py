@@ -91,7 +91,7 @@ class SwitchableHeartbeat(Node):
 
 
 class HeartbeatMonitor(Node):
-    """Exercise 08.4: reports on /heartbeat/status when the heartbeat"s writer is lost or alive again."""
+    """Exercise 08.4: reports on /heartbeat/status when the heartbeat's writer is lost or alive again."""
 
     def __init__(self):
         super().__init__("heartbeat_monitor")

@@ -2,8 +2,7 @@
 
 The notebook writes the two nodes itself (a talker with ``paused`` and ``offered_missed``, a
 listener with ``arrivals`` and ``requested_missed``); :func:`pause_talker` runs the schedule and
-:meth:`DeadlineResult.from_nodes` collects what they recorded. :func:`demo_deadline` does the same
-in one call, with plain nodes and lambdas.
+:meth:`DeadlineResult.from_nodes` collects what they recorded.
 """
 
 from __future__ import annotations
@@ -11,13 +10,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import QoSProfile
-from std_msgs.msg import String
-
-from course_helpers.chapters.ch08_qos.common import remove_nodes
 from course_helpers.core.errors import CourseError
-from course_helpers.core.qos_dict import seconds_to_duration
 
 
 @dataclass
@@ -68,47 +61,6 @@ def pause_talker(talker, pause: tuple = (1.0, 2.0), duration_s: float = 3.0) -> 
     return start
 
 
-def demo_deadline(rt, period_s: float = 0.1, deadline_s: float = 0.3, pause: tuple = (1.0, 2.0),
-                  duration_s: float = 3.0) -> DeadlineResult:
-    """A publisher sends every ``period_s`` but is silent during ``pause``; both ends ask for ``deadline_s``.
-
-    Args:
-        rt: the kernel's runtime (both nodes run in it).
-        period_s: seconds between messages; shorter than ``deadline_s``.
-        deadline_s: the deadline both ends ask for.
-        pause: (from, until) seconds after the start while the publisher is silent.
-        duration_s: how long the demo runs.
-
-    The one-call form of the notebook's deadline lesson (its nodes are plain nodes with lambdas):
-    DDS checks the deadline at both ends, the publisher gets 'offered deadline missed', the
-    subscription 'requested deadline missed', about once per ``deadline_s`` of silence.
-    Returns a :class:`DeadlineResult`.
-    """
-    if not period_s < deadline_s:
-        raise CourseError(f"period_s ({period_s}) must be shorter than deadline_s ({deadline_s})")
-    profile = QoSProfile(depth=10, deadline=seconds_to_duration(deadline_s, "deadline_s"))
-    listener = rt.node("qos_deadline_sub", console=False)
-    listener.arrivals, listener.requested_missed = [], []
-    listener.create_subscription(
-        String, "qos_deadline", lambda _m: listener.arrivals.append(time.monotonic()), profile,
-        event_callbacks=SubscriptionEventCallbacks(
-            deadline=lambda s: listener.requested_missed.append((time.monotonic(), s.total_count))))
-    talker = rt.node("qos_deadline_pub", console=False)
-    talker.paused, talker.offered_missed = False, []
-    publisher = talker.create_publisher(
-        String, "qos_deadline", profile,
-        event_callbacks=PublisherEventCallbacks(
-            deadline=lambda s: talker.offered_missed.append((time.monotonic(), s.total_count))))
-    try:
-        rt.wait_until(lambda: publisher.get_subscription_count() > 0, 5.0, "matching")
-        message = String(data="on time")
-        talker.create_timer(period_s, lambda: None if talker.paused else publisher.publish(message))
-        start = pause_talker(talker, pause, duration_s)
-    finally:
-        remove_nodes(rt, talker, listener)
-    return DeadlineResult.from_nodes(talker, listener, start, deadline_s, pause)
-
-
 def plot_deadline(result: DeadlineResult):
     """A matplotlib figure: arrivals as ticks, deadline-missed events as markers, the pause shaded."""
     import matplotlib.pyplot as plt
@@ -128,5 +80,3 @@ def plot_deadline(result: DeadlineResult):
     fig.tight_layout()
     return fig
 
-
-# ====================================================================== lifespan

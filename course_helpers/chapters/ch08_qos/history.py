@@ -1,54 +1,55 @@
-"""History and depth: what a subscription's reader keeps while nobody takes its messages."""
+"""History and depth: what a subscription's reader keeps while nobody takes its messages.
+
+The notebook writes a talker with a ``burst(count)`` method and a listener with one subscription
+per history; :func:`burst_before_spinning` runs the schedule: the burst arrives while the
+listener's node is not spun, and only then does the executor take what each history kept.
+"""
 
 from __future__ import annotations
 
 import time
 
-from rclpy.node import Node
-from rclpy.qos import QoSHistoryPolicy, QoSProfile
-from std_msgs.msg import String
+from course_helpers.core.errors import CourseError
+from course_helpers.core.waiting import poll_until
 
-from course_helpers.chapters.ch08_qos.common import remove_nodes
-
-BURST_TOPIC = "qos_burst"
+SETTLE_S = 0.2  # s for the burst to reach the readers' histories, and for any extra delivery to show
 
 
-def demo_history(rt, burst: int = 20, depths=(1, 5)) -> dict[str, list[int]]:
-    """Publish a burst into subscriptions whose node is not spun yet, then spin it.
+def burst_before_spinning(rt, listener_class, talker_class, count: int = 20):
+    """Build ``listener_class()`` without spinning it, spin ``talker_class()``, let the talker publish
+    ``count`` messages with ``talker.burst(count)``, then spin the listener. Both are removed at the end.
 
     Args:
         rt: the kernel's runtime.
-        burst: how many numbered messages the publisher sends at once.
-        depths: one KEEP_LAST(depth) subscription each; a KEEP_ALL subscription is added.
+        listener_class: a Node subclass with ``got``, a dict of lists its callbacks append to.
+        talker_class: a Node subclass with ``publisher`` and ``burst(count)``.
+        count: how many messages the burst sends, 1..1000.
 
-    While nobody takes messages, each subscription's DDS reader keeps what its history allows:
-    KEEP_LAST(depth) keeps the newest ``depth``; KEEP_ALL keeps everything. Returns, for each
-    subscription ('KEEP_LAST(1)', ..., 'KEEP_ALL'), the numbers it finally delivered.
+    Returns the listener, whose ``got`` holds what each subscription delivered once spun.
     """
-    got: dict[str, list[int]] = {}
-    profiles = [(f"KEEP_LAST({d})", QoSProfile(depth=d)) for d in depths]
-    profiles.append(("KEEP_ALL", QoSProfile(history=QoSHistoryPolicy.KEEP_ALL)))
-    holder = rt.build(Node, "qos_history_sub")  # built in the runtime's context, not spun yet
-    for label, profile in profiles:
-        got[label] = []
-        holder.create_subscription(String, BURST_TOPIC, lambda m, label=label: got[label].append(int(m.data)),
-                                   profile)
-    pub_node = rt.node("qos_history_pub", console=False)
-    publisher = pub_node.create_publisher(String, BURST_TOPIC, QoSProfile(history=QoSHistoryPolicy.KEEP_ALL))
-    spun = False
+    if not 1 <= count <= 1000:
+        raise CourseError(f"count must be 1..1000, got {count}")
+    listener = rt.build(listener_class)  # built in the runtime's context, not spun: nobody takes messages
+    talker, spun = None, False
     try:
-        rt.wait_until(lambda: publisher.get_subscription_count() >= len(profiles), 5.0, "matching")
-        for i in range(burst):
-            publisher.publish(String(data=str(i)))
-        time.sleep(0.2)  # delivered into the readers' histories; no callback has run
-        rt.add(holder, console=False)
+        if not isinstance(getattr(listener, "got", None), dict) or not listener.got:
+            raise CourseError(f"{listener_class.__name__} needs self.got, a dict of lists (one per "
+                              "subscription) that its callbacks append to")
+        talker = rt.add(talker_class, console=False)
+        subscriptions = len(list(listener.subscriptions))
+        rt.wait_until(lambda: talker.publisher.get_subscription_count() >= subscriptions, 5.0,
+                      f"the talker to match the listener's {subscriptions} subscriptions")
+        talker.burst(count)
+        time.sleep(SETTLE_S)  # delivered into the readers' histories; no callback has run
+        rt.add(listener, console=False)
         spun = True
-        rt.wait_until(lambda: len(got["KEEP_ALL"]) >= burst, 5.0, "the burst")
-        time.sleep(0.2)  # anything beyond what the history kept would show up now
+        poll_until(lambda: max(len(got) for got in listener.got.values()) >= count, 5.0)
+        time.sleep(SETTLE_S)  # anything beyond what the histories kept would show up now
     finally:
-        remove_nodes(rt, pub_node)
+        if talker is not None:
+            rt.remove(talker)
         if spun:
-            rt.remove(holder)
+            rt.remove(listener)
         else:
-            holder.destroy_node()
-    return got
+            listener.destroy_node()
+    return listener

@@ -1,25 +1,24 @@
 """Liveliness: when a subscription declares its publisher not alive, and what keeps it alive.
 
-* :func:`demo_liveliness_kill` - a publisher process is killed with SIGKILL;
-* :func:`demo_liveliness_manual` - a MANUAL_BY_TOPIC publisher goes quiet while its process lives
-  (:class:`LivelinessTalker`, in a child process, reports ``start`` and its ``lost`` events).
+The notebook writes the monitor (one subscription per topic, each with a liveliness callback); the
+publishers run in child processes, so that liveliness travels between two participants:
+
+* :func:`kill_talker` - :class:`~.publishers.AliveTalker` (AUTOMATIC) is killed with SIGKILL;
+* :func:`watch_quiet_spell` - :class:`~.publishers.LivelinessTalker` goes quiet on an AUTOMATIC and a
+  MANUAL_BY_TOPIC topic while its process lives, and reports ``start`` and its ``lost`` events.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from functools import partial
 
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.node import Node
-from std_msgs.msg import String
-
-from course_helpers.chapters.ch08_qos.publishers import QosTalker
-from course_helpers.core.channel import report
-from course_helpers.core.qos_dict import qos_from_dict
+from course_helpers.chapters.ch08_qos.publishers import AliveTalker, LivelinessTalker
+from course_helpers.core.errors import CourseError
+from course_helpers.core.waiting import poll_until
 
 KINDS = ("automatic", "manual_by_topic")
+AFTER_NOT_ALIVE_S = 0.2  # s watched after the killed publisher was declared not alive
 
 
 @dataclass
@@ -42,136 +41,72 @@ class LivelinessResult:
         return None
 
 
-class LivelinessWatcher(Node):
-    """Subscribes to String topics and records each subscription's liveliness-changed events.
-
-    ``topics`` maps a label to (topic, QoSProfile). :attr:`changed` maps each label to
-    (``time.monotonic()``, alive_count, not_alive_count) events; :attr:`received` counts messages.
-    The notebook writes a node of its own with the same constructor and attributes, and passes it
-    to the demos as ``watcher_class``.
-    """
-
-    def __init__(self, name: str, topics: dict):
-        super().__init__(name)
-        self.changed: dict[str, list[tuple[float, int, int]]] = {label: [] for label in topics}
-        self.received = {label: 0 for label in topics}
-        for label, (topic, qos) in topics.items():
-            self.create_subscription(
-                String, topic, partial(self.on_message, label), qos,
-                event_callbacks=SubscriptionEventCallbacks(liveliness=partial(self.on_liveliness, label)))
-
-    def on_message(self, label: str, _msg: String) -> None:
-        self.received[label] += 1
-
-    def on_liveliness(self, label: str, status) -> None:
-        self.changed[label].append((time.monotonic(), status.alive_count, status.not_alive_count))
+def _check_monitor(monitor, labels) -> None:
+    """A :class:`CourseError` unless ``monitor`` has ``changed`` and ``received`` for each of ``labels``."""
+    for attr in ("changed", "received"):
+        recorded = getattr(monitor, attr, None)
+        if not isinstance(recorded, dict) or not set(labels) <= set(recorded):
+            raise CourseError(f"the monitor needs self.{attr}, a dict with the labels {', '.join(labels)}")
 
 
-def _since(watcher, start: float, until: float | None = None) -> dict[str, list[tuple[float, int, int]]]:
-    """``watcher.changed`` with times in seconds since ``start`` (events after ``until`` left out)."""
+def _since(monitor, start: float, until: float | None = None) -> dict[str, list[tuple[float, int, int]]]:
+    """``monitor.changed`` with times in seconds since ``start`` (events after ``until`` left out)."""
     return {label: [(t - start, alive, not_alive) for t, alive, not_alive in events
                     if until is None or t - start <= until]
-            for label, events in watcher.changed.items()}
+            for label, events in monitor.changed.items()}
 
 
-def demo_liveliness_kill(rt, lease_s: float = 1.0, watch_s: float = 2.5,
-                         watcher_class=LivelinessWatcher) -> LivelinessResult:
-    """A publisher in a child process (AUTOMATIC liveliness, lease ``lease_s``) is killed with SIGKILL.
+def kill_talker(rt, monitor, lease_s: float = 1.0, watch_s: float = 2.5) -> LivelinessResult:
+    """Start :class:`AliveTalker` (AUTOMATIC liveliness, lease ``lease_s``, topic ``alive``) in a child
+    process, SIGKILL it once ``monitor`` got 3 messages, and watch until the lease ran out.
 
     Args:
-        rt: the kernel's runtime (the subscription runs in it).
-        lease_s: the liveliness lease both ends use.
-        watch_s: seconds watched after the kill.
-        watcher_class: the subscribing node, built as ``watcher_class(name, {label: (topic, QoSProfile)})``
-            (see :class:`LivelinessWatcher`).
+        rt: the kernel's runtime.
+        monitor: a spinning node subscribed to ``alive``, recording under the label 'automatic'
+            ``received`` (a message count) and ``changed`` ((time.monotonic(), alive_count,
+            not_alive_count) of each liveliness-changed event). It is removed at the end.
+        lease_s: the talker's liveliness lease.
+        watch_s: the longest watch after the kill; it ends 0.2 s after the subscription saw the
+            publisher not alive.
 
-    The process cannot say goodbye; the subscription notices when the lease runs out without
-    the participant's liveliness heartbeat, and its liveliness-changed event fires. Returns a
-    :class:`LivelinessResult` with the label 'automatic'.
+    The process cannot say goodbye: the subscription notices when the lease runs out without the
+    participant's liveliness assertion. Returns a :class:`LivelinessResult` (times since the start).
     """
+    _check_monitor(monitor, ["automatic"])
     start = time.monotonic()
-    qos = {"liveliness": "automatic", "lease_s": lease_s}
-    watcher = rt.add(watcher_class, "qos_liveliness_watch", {"automatic": ("qos_alive", qos_from_dict(qos))},
-                     console=False)
-    child = rt.spawn("qos_alive_talker", QosTalker,
-                     params={"name": "qos_alive_talker", "topic": "qos_alive", "qos": qos, "rate_hz": 10.0},
-                     wait_for="/qos_alive_talker")
+    child = rt.spawn("alive_talker", AliveTalker, params={"lease_s": lease_s}, wait_for="/alive_talker")
     try:
-        rt.wait_until(lambda: watcher.received["automatic"] >= 3, 10.0, "messages from the child talker")
-        cut = time.monotonic() - start
-        child.kill()
-        time.sleep(watch_s)  # the lease runs out meanwhile
+        rt.wait_until(lambda: monitor.received["automatic"] >= 3, 10.0, "messages from the child talker")
+        killed_at = time.monotonic()
+        child.kill()  # SIGKILL, as a crash would
+        events = monitor.changed["automatic"]
+        # the lease runs out meanwhile
+        poll_until(lambda: any(t > killed_at and not_alive for t, _a, not_alive in events), watch_s)
+        time.sleep(AFTER_NOT_ALIVE_S)  # anything more the subscription would report
     finally:
-        rt.stop_child("qos_alive_talker")
-        rt.remove(watcher)
-    return LivelinessResult(lease_s, cut, None, _since(watcher, start), [], dict(watcher.received),
-                            cut + watch_s)
+        rt.stop_child("alive_talker")
+        rt.remove(monitor)
+    return LivelinessResult(lease_s, killed_at - start, None, _since(monitor, start), [],
+                            dict(monitor.received), time.monotonic() - start)
 
 
-class LivelinessTalker(Node):
-    """One node, two publishers with lease ``lease_s``, and a quiet spell.
-
-    Args:
-        name: the node name.
-        lease_s: the liveliness lease of both publishers.
-        period_s: seconds between messages.
-        quiet_from, quiet_until: the quiet spell, in seconds after the start.
-
-    Publishes on ``qos_automatic`` (AUTOMATIC) and ``qos_manual_by_topic`` (MANUAL_BY_TOPIC)
-    from the moment both are matched, and reports ``start`` then. Every liveliness-lost event
-    of the manual publisher is reported as ``lost`` with its ``total_count``.
-    """
-
-    def __init__(self, name: str = "qos_liveliness_pub", lease_s: float = 0.5, period_s: float = 0.1,
-                 quiet_from: float = 1.0, quiet_until: float = 2.5):
-        super().__init__(name)
-        self.quiet = (quiet_from, quiet_until)
-        self.started_at: float | None = None
-        self.automatic = self.create_publisher(
-            String, "qos_automatic", qos_from_dict({"liveliness": "automatic", "lease_s": lease_s}))
-        self.manual = self.create_publisher(
-            String, "qos_manual_by_topic",
-            qos_from_dict({"liveliness": "manual_by_topic", "lease_s": lease_s}),
-            event_callbacks=PublisherEventCallbacks(liveliness=self.on_liveliness_lost))
-        self.timer = self.create_timer(period_s, self.tick)  # period in seconds
-
-    def on_liveliness_lost(self, status) -> None:
-        report("lost", total_count=status.total_count)
-
-    def tick(self) -> None:
-        now = time.monotonic()
-        if self.started_at is None:
-            if self.automatic.get_subscription_count() and self.manual.get_subscription_count():
-                self.started_at = now
-                report("start")
-            return
-        if not self.quiet[0] <= now - self.started_at < self.quiet[1]:
-            for publisher in (self.automatic, self.manual):
-                publisher.publish(String(data="still here"))  # publishing asserts liveliness
-
-
-def demo_liveliness_manual(rt, lease_s: float = 0.5, period_s: float = 0.1, quiet_from: float = 1.0,
-                           quiet_until: float = 2.5, duration_s: float = 3.5,
-                           watcher_class=LivelinessWatcher) -> LivelinessResult:
-    """A child process publishes on two topics, AUTOMATIC and MANUAL_BY_TOPIC, goes quiet, then resumes.
+def watch_quiet_spell(rt, monitor, lease_s: float = 0.5, period_s: float = 0.1, quiet_from: float = 1.0,
+                      quiet_until: float = 2.5, duration_s: float = 3.5) -> LivelinessResult:
+    """Start :class:`LivelinessTalker` in a child process and watch ``monitor`` for ``duration_s`` seconds.
 
     Args:
-        rt: the kernel's runtime (the subscriptions run in it).
+        rt: the kernel's runtime.
+        monitor: a spinning node subscribed to ``qos_automatic`` and ``qos_manual_by_topic``, recording
+            under the labels 'automatic' and 'manual_by_topic' as for :func:`kill_talker`. It is
+            removed at the end.
         lease_s, period_s, quiet_from, quiet_until: see :class:`LivelinessTalker`.
-        duration_s: seconds watched from the start.
-        watcher_class: the subscribing node, as for :func:`demo_liveliness_kill`.
+        duration_s: seconds watched from the moment the talker matched both subscriptions.
 
-    The process stays alive all along. The AUTOMATIC writer stays alive (its participant keeps
-    asserting for it); the MANUAL_BY_TOPIC writer must publish or call ``assert_liveliness()``
-    within every lease, so it is declared lost (publisher: liveliness lost; subscription:
-    liveliness changed) until it speaks again. The publisher runs in a child process so that
-    liveliness travels between two participants, as between two programs on a robot. Returns a
-    :class:`LivelinessResult` with the labels 'automatic' and 'manual_by_topic'.
+    The process stays alive all along. Returns a :class:`LivelinessResult` (times since the talker
+    matched), with the talker's liveliness-lost events in ``lost``.
     """
-    topics = {kind: (f"qos_{kind}", qos_from_dict({"liveliness": kind, "lease_s": lease_s}))
-              for kind in KINDS}
-    watcher = rt.add(watcher_class, "qos_liveliness_sub", topics, console=False)
-    child = rt.spawn("qos_liveliness_pub", LivelinessTalker,
+    _check_monitor(monitor, KINDS)
+    child = rt.spawn("liveliness_talker", LivelinessTalker,
                      params={"lease_s": lease_s, "period_s": period_s, "quiet_from": quiet_from,
                              "quiet_until": quiet_until})
     try:
@@ -180,10 +115,10 @@ def demo_liveliness_manual(rt, lease_s: float = 0.5, period_s: float = 0.1, quie
         time.sleep(max(0.0, start + duration_s - time.monotonic()))  # the quiet spell passes meanwhile
         lost = [(t - start, data["total_count"]) for t, data in child.channel.stamped("lost")]
     finally:
-        rt.stop_child("qos_liveliness_pub")
-        rt.remove(watcher)
-    return LivelinessResult(lease_s, quiet_from, quiet_until, _since(watcher, start, duration_s), lost,
-                            dict(watcher.received), duration_s)
+        rt.stop_child("liveliness_talker")
+        rt.remove(monitor)
+    return LivelinessResult(lease_s, quiet_from, quiet_until, _since(monitor, start, duration_s), lost,
+                            dict(monitor.received), duration_s)
 
 
 def plot_liveliness(results: list[LivelinessResult], titles: list[str]):

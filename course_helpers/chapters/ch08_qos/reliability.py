@@ -1,22 +1,23 @@
 """Reliability: large messages from another process, best effort against reliable, with the
-subscription's ``message_lost`` event."""
+subscription's ``message_lost`` event.
+
+The notebook writes the listener (its two subscriptions, QoS profiles and ``message_lost``
+callbacks); :func:`run_stream` starts :class:`~.publishers.StreamPublisher` in a child process
+against it and collects what the listener recorded.
+"""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
-from rclpy.event_handler import SubscriptionEventCallbacks
-from std_msgs.msg import UInt8MultiArray
-
-from course_helpers.chapters.ch08_qos.common import remove_nodes
 from course_helpers.chapters.ch08_qos.publishers import StreamPublisher
 from course_helpers.core.errors import CourseError
-from course_helpers.core.qos_dict import qos_from_dict
 from course_helpers.core.waiting import poll_until
 
+KINDS = ("best_effort", "reliable")
 RESEND_WAIT_S = 5.0  # s a reliable subscription may take to get what was resent
-TOPICS = {"best_effort": "qos_best_effort", "reliable": "qos_reliable"}
+TAIL_S = 0.3  # s for the last best-effort messages and loss events after everything was sent
 
 
 @dataclass
@@ -26,55 +27,48 @@ class ReliabilityResult:
     sent: int
     size: int
     rate_hz: float
-    received: dict[str, list[int]]  # 'best_effort' / 'reliable' -> message numbers
+    received: dict[str, list[int]]  # 'best_effort' / 'reliable' -> message numbers, sorted
     lost_reported: dict[str, int]  # message_lost total_count per subscription
 
-    def share(self, kind: str) -> float:
-        """The share (0..1) of the messages that subscription ``kind`` received."""
-        return len(set(self.received[kind])) / self.sent
+    def missing(self, kind: str) -> int:
+        """How many of the messages sent never reached subscription ``kind``."""
+        return self.sent - len(self.received[kind])
 
 
-def demo_reliability(rt, size: int = 1_000_000, rate_hz: float = 60.0, count: int = 90,
-                     timeout: float = 20.0) -> ReliabilityResult:
-    """A child process publishes the same numbered messages on a best-effort and a reliable topic.
+def run_stream(rt, listener, size: int = 500_000, rate_hz: float = 60.0, count: int = 90,
+               timeout: float = 20.0) -> ReliabilityResult:
+    """Start :class:`StreamPublisher` in a child process against ``listener``, then remove both.
 
     Args:
-        rt: the kernel's runtime; it subscribes to both topics with matching QoS and a
-            ``message_lost`` event callback.
+        rt: the kernel's runtime.
+        listener: a spinning node subscribed to ``stream_best_effort`` and ``stream_reliable``, with
+            ``received`` ({kind: [message numbers]}) and ``lost`` ({kind: message_lost total_count})
+            for the kinds 'best_effort' and 'reliable'.
         size: bytes per message.
         rate_hz: messages per second.
         count: messages per topic, 1..1000.
         timeout: seconds the publisher may take to send everything.
 
-    Large messages at a high rate overflow transport buffers: best effort drops what does not
-    fit (and reports it), reliable resends until everything the writer still holds arrives.
-    Returns a :class:`ReliabilityResult`.
+    Waits until everything is sent, then (up to 5 s) until the reliable subscription has every
+    message, as resends take a while. Returns a :class:`ReliabilityResult`.
     """
     if not 1 <= count <= 1000:
         raise CourseError(f"count must be 1..1000, got {count}")
-    keep = {"history": "keep_last", "depth": count}
-    qos = {kind: {**keep, "reliability": kind} for kind in TOPICS}
-    received: dict[str, list[int]] = {kind: [] for kind in TOPICS}
-    lost = {kind: 0 for kind in TOPICS}
-    node = rt.node("qos_reliability_sub", console=False)
-    for kind, topic in TOPICS.items():
-        def on_lost(status, kind=kind):
-            lost[kind] = status.total_count
-
-        node.create_subscription(
-            UInt8MultiArray, topic, lambda msg, kind=kind: received[kind].append(msg.layout.data_offset),
-            qos_from_dict(qos[kind]), event_callbacks=SubscriptionEventCallbacks(message_lost=on_lost))
-    topics = {TOPICS[kind]: qos[kind] for kind in TOPICS}
-    child = rt.spawn("qos_stream", StreamPublisher, params={"name": "qos_stream", "topics": topics,
-                                                           "size": size, "rate_hz": rate_hz, "count": count})
+    if not all(isinstance(getattr(listener, attr, None), dict) and set(KINDS) <= set(getattr(listener, attr))
+               for attr in ("received", "lost")):
+        raise CourseError("the listener needs self.received and self.lost, dicts with the keys "
+                          "'best_effort' and 'reliable'")
+    child = rt.spawn("stream_publisher", StreamPublisher,
+                     params={"size": size, "rate_hz": rate_hz, "count": count})
     try:
         child.wait_for_report("sent", timeout, "the stream publisher to send everything")
-        poll_until(lambda: len(set(received["reliable"])) >= count, RESEND_WAIT_S)  # reported as it is
-        time.sleep(0.3)  # the last best-effort messages and loss events
+        poll_until(lambda: len(set(listener.received["reliable"])) >= count, RESEND_WAIT_S)
+        time.sleep(TAIL_S)
     finally:
-        rt.stop_child("qos_stream")
-        remove_nodes(rt, node)
-    return ReliabilityResult(count, size, rate_hz, {k: sorted(set(v)) for k, v in received.items()}, lost)
+        rt.stop_child("stream_publisher")
+        rt.remove(listener)
+    return ReliabilityResult(count, size, rate_hz, {k: sorted(set(listener.received[k])) for k in KINDS},
+                             {k: listener.lost[k] for k in KINDS})
 
 
 def plot_reliability(result: ReliabilityResult):
