@@ -2,9 +2,10 @@
 
 Chapter 00's check judges the environment: its criteria are fed facts with one thing wrong, and the
 whole check runs in fresh processes whose environment really is wrong (discovery open to the network,
-a context shut down, a package that cannot be imported). Chapters 01 and 07 run real nodes over real
-Fast DDS: each wrong solution is a mistake a student makes, and the test names the criterion that
-must catch it. The reference solutions pass in the chapters' own test files and in the notebooks.
+a context shut down, a package that cannot be imported). Chapter 07's checker runs real nodes over
+real Fast DDS: each wrong solution is a mistake a student makes, and the test names the criterion
+that must catch it. Chapter 01's wrong watchdogs live beside its other checker tests, in
+``test_ch01_04_exercises.py`` (a file of its own lets ``make test`` run them in parallel with these).
 """
 
 from __future__ import annotations
@@ -12,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import time
 
 import pytest
 import rclpy
@@ -22,9 +22,7 @@ from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_opti
 from std_msgs.msg import Int32, String
 
 from course_helpers.checks.ch00_environment import environment_report, observe_environment
-from course_helpers.checks.ch01_architecture import check_silence_watchdog
 from course_helpers.checks.ch07_dds import check_private_robot
-from course_helpers.solutions.ch01_architecture import SilenceWatchdog
 from course_helpers.solutions.ch07_dds import PrivateRobot, private_context
 
 from .conftest import run_python
@@ -115,94 +113,6 @@ def test_package_criteria_fail_when_a_package_cannot_be_imported():
     passed, detail = criteria["message packages std_msgs, std_srvs, geometry_msgs, sensor_msgs, test_msgs"]
     assert not passed and detail == "missing: test_msgs.action", criteria
     assert criteria["the course's own interfaces (course_interfaces) are built"] == [False, ""], criteria
-
-
-# ---------------------------------------------------------------------- 01: the silence watchdog
-class NeedsAnArgument(SilenceWatchdog):
-    """Wrong: the constructor wants the silence threshold, so the checker cannot build it."""
-
-    def __init__(self, silence_s):
-        super().__init__()
-        self.SILENCE_S = silence_s
-
-
-class WrongName(SilenceWatchdog):
-    """Wrong: a watchdog that works, under another node name."""
-
-    def __init__(self):
-        Node.__init__(self, "watchdog")
-        self.last_heard, self.reported = {}, set()
-        self.alarm = self.create_publisher(String, "silent_talkers", 10)
-        self.subscription = self.create_subscription(String, "chatter", self.on_chatter, 10)
-        self.timer = self.create_timer(0.1, self.check)
-
-
-class NumbersForAlarms(Node):
-    """Wrong: publishes its alarms as Int32 (a count) instead of the sender's name."""
-
-    def __init__(self):
-        super().__init__("silence_watchdog")
-        self.alarm = self.create_publisher(Int32, "silent_talkers", 10)
-        self.subscription = self.create_subscription(String, "chatter", lambda msg: None, 10)
-
-
-class Jumpy(SilenceWatchdog):
-    """Wrong: a threshold in the wrong unit (20 ms, not 0.5 s): talkers at 20 Hz look silent."""
-
-    SILENCE_S = 0.02
-
-
-class ReportsOnceEver(SilenceWatchdog):
-    """Wrong: never forgets whom it reported, so a talker that comes back and dies again is missed."""
-
-    def on_chatter(self, msg):
-        self.last_heard[msg.data.split(":", 1)[0]] = time.monotonic()
-
-
-class ReportsEveryone(SilenceWatchdog):
-    """Wrong: when anybody is silent, reports every sender it has ever heard."""
-
-    def check(self):
-        now = time.monotonic()
-        if any(now - heard > self.SILENCE_S for heard in self.last_heard.values()):
-            for sender in self.last_heard:
-                if sender not in self.reported:
-                    self.reported.add(sender)
-                    self.alarm.publish(String(data=sender))
-
-
-class ForgetsWhileLooking(SilenceWatchdog):
-    """Wrong: deletes a silent sender from the dict it is iterating over (RuntimeError in the timer)."""
-
-    def check(self):
-        now = time.monotonic()
-        for sender, heard in self.last_heard.items():
-            if now - heard > self.SILENCE_S:
-                self.alarm.publish(String(data=sender))
-                del self.last_heard[sender]
-
-
-@pytest.mark.parametrize("wrong, criterion", [
-    (NeedsAnArgument, "the node can be created"),
-    (WrongName, "the node is named silence_watchdog"),
-    (NumbersForAlarms, "publishes on /silent_talkers with type std_msgs/msg/String"),
-    (Jumpy, "no alarm while both talkers talk"),
-    (ReportsOnceEver, "reports wd_talker_1 again after it talked again and fell silent"),
-    (ReportsEveryone, "never reports wd_talker_2, which keeps talking"),
-    (ForgetsWhileLooking, "callbacks raised no errors"),
-])
-def test_watchdog_checker_rejects(rt, wrong, criterion):
-    report = check_silence_watchdog(wrong, rt)
-    assert criterion in _failed(report), report.summary()
-    assert not [label for label in rt.children() if label.startswith("wd_talker")]
-
-
-def test_watchdog_checker_reports_the_return_of_a_talker_for_the_reference(rt):
-    report = check_silence_watchdog(SilenceWatchdog, rt)
-    assert report.passed, report.summary()
-    names = [c.name for c in report.criteria]
-    assert "the node is named silence_watchdog" in names
-    assert "reports wd_talker_1 again after it talked again and fell silent" in names
 
 
 # ---------------------------------------------------------------------- 07: a robot the class cannot see
