@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import time
 
+import pytest
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
-from std_msgs.msg import String
+from std_msgs.msg import Int32, String
 
 from course_helpers.checks.ch01_architecture import check_silence_watchdog
 from course_helpers.checks.ch02_executors import check_responsive_robot
@@ -20,10 +21,17 @@ from course_helpers.solutions.ch02_executors import Robot
 
 
 # ---------------------------------------------------------------------- 01: silence watchdog
+def _failed(report) -> list[str]:
+    return [c.name for c in report.criteria if not c.passed]
+
+
 def test_watchdog_checker_accepts_the_reference(rt):
     report = check_silence_watchdog(SilenceWatchdog, rt)
     assert report.passed, report.summary()
     assert "while the ROS graph still listed /wd_talker_1" in report.summary()
+    names = [c.name for c in report.criteria]
+    assert "the node is named silence_watchdog" in names
+    assert "reports wd_talker_1 again after it talked again and fell silent" in names
     assert not [label for label in rt.children() if label.startswith("wd_talker")]
 
 
@@ -77,6 +85,86 @@ def test_watchdog_checker_stops_early_without_a_subscription(rt):
     assert "[FAIL] subscribes to /chatter" in summary and "[pass] publishes on /silent_talkers" in summary
     assert "not run" in summary
     assert not rt.children()
+
+
+# One plausible wrong watchdog per criterion (the three above included).
+class NeedsAnArgument(SilenceWatchdog):
+    """Wrong: the constructor wants the silence threshold, so the checker cannot build it."""
+
+    def __init__(self, silence_s):
+        super().__init__()
+        self.SILENCE_S = silence_s
+
+
+class WrongName(SilenceWatchdog):
+    """Wrong: a watchdog that works, under another node name."""
+
+    def __init__(self):
+        Node.__init__(self, "watchdog")
+        self.last_heard, self.reported = {}, set()
+        self.alarm = self.create_publisher(String, "silent_talkers", 10)
+        self.subscription = self.create_subscription(String, "chatter", self.on_chatter, 10)
+        self.timer = self.create_timer(0.1, self.check)
+
+
+class NumbersForAlarms(Node):
+    """Wrong: publishes its alarms as Int32 (a count) instead of the sender's name."""
+
+    def __init__(self):
+        super().__init__("silence_watchdog")
+        self.alarm = self.create_publisher(Int32, "silent_talkers", 10)
+        self.subscription = self.create_subscription(String, "chatter", lambda msg: None, 10)
+
+
+class Jumpy(SilenceWatchdog):
+    """Wrong: a threshold in the wrong unit (20 ms, not 0.5 s): talkers at 20 Hz look silent."""
+
+    SILENCE_S = 0.02
+
+
+class ReportsOnceEver(SilenceWatchdog):
+    """Wrong: never forgets whom it reported, so a talker that comes back and dies again is missed."""
+
+    def on_chatter(self, msg):
+        self.last_heard[msg.data.split(":", 1)[0]] = time.monotonic()
+
+
+class ReportsEveryone(SilenceWatchdog):
+    """Wrong: when anybody is silent, reports every sender it has ever heard."""
+
+    def check(self):
+        now = time.monotonic()
+        if any(now - heard > self.SILENCE_S for heard in self.last_heard.values()):
+            for sender in self.last_heard:
+                if sender not in self.reported:
+                    self.reported.add(sender)
+                    self.alarm.publish(String(data=sender))
+
+
+class ForgetsWhileLooking(SilenceWatchdog):
+    """Wrong: deletes a silent sender from the dict it is iterating over (RuntimeError in the timer)."""
+
+    def check(self):
+        now = time.monotonic()
+        for sender, heard in self.last_heard.items():
+            if now - heard > self.SILENCE_S:
+                self.alarm.publish(String(data=sender))
+                del self.last_heard[sender]
+
+
+@pytest.mark.parametrize("wrong, criterion", [
+    (NeedsAnArgument, "the node can be created"),
+    (WrongName, "the node is named silence_watchdog"),
+    (NumbersForAlarms, "publishes on /silent_talkers with type std_msgs/msg/String"),
+    (Jumpy, "no alarm while both talkers talk"),
+    (ReportsOnceEver, "reports wd_talker_1 again after it talked again and fell silent"),
+    (ReportsEveryone, "never reports wd_talker_2, which keeps talking"),
+    (ForgetsWhileLooking, "callbacks raised no errors"),
+])
+def test_watchdog_checker_rejects(rt, wrong, criterion):
+    report = check_silence_watchdog(wrong, rt)
+    assert criterion in _failed(report), report.summary()
+    assert not [label for label in rt.children() if label.startswith("wd_talker")]
 
 
 # ---------------------------------------------------------------------- 02: responsive robot

@@ -22,9 +22,10 @@ ROOT_RANK = 6  # course_helpers/__init__.py: the entry point may use every layer
 MAX_MODULE_LINES = 500
 # What the bottom layer may import besides the standard library: rclpy and the ROS packages it
 # needs (rosidl_parser, to read message definitions), PyYAML and NumPy (dependencies of rclpy
-# and of the rosidl build), and the Jupyter display libraries for node consoles.
+# and of the rosidl build), psutil (pinned: processes and sockets without parsing /proc by hand),
+# and the Jupyter display libraries for node consoles.
 CORE_THIRD_PARTY = {"rclpy", "rcl_interfaces", "builtin_interfaces", "rosidl_parser", "yaml", "numpy",
-                    "ipywidgets", "IPython"}
+                    "psutil", "ipywidgets", "IPython"}
 
 
 def _modules():

@@ -3,7 +3,7 @@
 * :func:`layer_stack` / :func:`show_layer_stack` / :func:`draw_layer_stack` - rclpy, rcl, rmw,
   the rmw implementation, Fast DDS and Fast CDR as this kernel runs them: package versions and
   the shared libraries actually mapped into the process (read from ``/proc/self/maps``);
-* :func:`transports_in_use` - the shared-memory segments and UDP ports Fast DDS opened here;
+* :func:`transports_in_use` - the shared-memory segments and UDP sockets Fast DDS opened here;
 * :class:`NamedTalker` and :class:`ChatterCounter` - nodes for the demo in which nodes in
   separate processes find each other with nothing started first, and keep talking when one of
   them is killed (``rt.spawn('talker_a', NamedTalker, {'name': 'talker_a'})``).
@@ -24,6 +24,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.udp_sockets import udp_sockets
 from course_helpers.core.versions import package_version
 from course_helpers.nodes.chatter import Talker
 
@@ -55,7 +56,7 @@ _LAYER_FILES = {
 }
 _ROLES = {
     "rclpy": "Python client library: Node, publishers, timers, executors",
-    "rcl": "ROS client library in C: names, parameters, graph; shared by rclpy and rclcpp",
+    "rcl": "ROS client library in C: names, arguments, parameter overrides, graph, timers",
     "rmw": "ROS middleware interface: the C API every middleware implements",
     "rmw_fastrtps_cpp": "the rmw implementation for eProsima Fast DDS",
     "Fast DDS": "the DDS implementation: discovery, QoS, readers and writers (RTPS protocol)",
@@ -115,11 +116,16 @@ def show_layer_stack(layers: list[Layer] | None = None) -> None:
 # ---------------------------------------------------------------------- transports
 @dataclass
 class Transports:
-    """What Fast DDS opened in this process: shared-memory files and UDP ports."""
+    """What Fast DDS opened in this process: shared-memory files and UDP sockets."""
 
     domain_id: int
     shm_files: list[str]
-    udp_ports: list[tuple[int, str]]  # (port, meaning)
+    udp_sockets: list[tuple[str, int, str]]  # (address, port, meaning)
+
+    @property
+    def udp_ports(self) -> list[tuple[int, str]]:
+        """(port, meaning) of each UDP socket."""
+        return [(port, meaning) for _address, port, meaning in self.udp_sockets]
 
     @property
     def uses_shm(self) -> bool:
@@ -127,7 +133,12 @@ class Transports:
 
     @property
     def uses_udp(self) -> bool:
-        return bool(self.udp_ports)
+        return bool(self.udp_sockets)
+
+    @property
+    def addresses(self) -> list[str]:
+        """The addresses the UDP sockets are bound to, sorted, each once."""
+        return sorted({address for address, _port, _meaning in self.udp_sockets})
 
 
 def classify_port(port: int, domain_id: int) -> str:
@@ -152,15 +163,15 @@ def classify_port(port: int, domain_id: int) -> str:
 
 
 def transports_in_use(domain_id: int | None = None) -> Transports:
-    """The shared-memory files mapped and the UDP ports bound by this process.
+    """The shared-memory files mapped and the UDP sockets bound by this process.
 
     Args:
         domain_id: the ROS domain, to name the ports (default: ``ROS_DOMAIN_ID``).
 
     Returns:
         A :class:`Transports`. Fast DDS keeps the shared-memory segments and ports in
-        ``/dev/shm/fastrtps_*`` and ``/dev/shm/fastdds_*``; UDP sockets are found by matching this
-        process's socket file descriptors with ``/proc/self/net/udp``. The runtime's DDS
+        ``/dev/shm/fastrtps_*`` and ``/dev/shm/fastdds_*``; the UDP sockets are the process's
+        own (:func:`course_helpers.core.udp_sockets.udp_sockets`). The runtime's DDS
         participant is created first if no node has created it yet.
     """
     from course_helpers.core.runtime import get_runtime
@@ -174,38 +185,19 @@ def transports_in_use(domain_id: int | None = None) -> Transports:
             path = line.split()[-1] if line.strip() else ""
             if path.startswith("/dev/shm/fast"):
                 shm.add(os.path.basename(path))
-    inodes = set()
-    for fd in os.listdir("/proc/self/fd"):
-        try:
-            target = os.readlink(f"/proc/self/fd/{fd}")
-        except OSError:
-            continue
-        if target.startswith("socket:["):
-            inodes.add(target[8:-1])
-    ports = set()
-    for table in ("/proc/self/net/udp", "/proc/self/net/udp6"):
-        try:
-            with open(table, encoding="utf-8") as handle:
-                rows = handle.read().splitlines()[1:]
-        except OSError:
-            continue
-        for row in rows:
-            cols = row.split()
-            if len(cols) > 9 and cols[9] in inodes:
-                ports.add(int(cols[1].rsplit(":", 1)[1], 16))
     return Transports(domain_id, sorted(shm),
-                      [(p, classify_port(p, domain_id)) for p in sorted(ports)])
+                      [(address, port, classify_port(port, domain_id)) for address, port in udp_sockets()])
 
 
 def show_transports(transports: Transports | None = None) -> None:
-    """Print the shared-memory files and UDP ports of ``transports`` (default: :func:`transports_in_use`)."""
+    """Print the shared-memory files and UDP sockets of ``transports`` (default: measured now)."""
     t = transports or transports_in_use()
     print(f"shared memory (/dev/shm), {len(t.shm_files)} files mapped:")
     for name in t.shm_files:
         print(f"  {name}")
-    print(f"UDP ports bound (domain {t.domain_id}):")
-    for port, meaning in t.udp_ports:
-        print(f"  {port:>5}  {meaning}")
+    print(f"UDP sockets, address:port (domain {t.domain_id}):")
+    for address, port, meaning in t.udp_sockets:
+        print(f"  {address + ':' + str(port):>15}  {meaning}")
 
 
 def draw_layer_stack(layers: list[Layer] | None = None, transports: Transports | None = None):
@@ -225,7 +217,7 @@ def draw_layer_stack(layers: list[Layer] | None = None, transports: Transports |
         libs = ", ".join(layer.libraries[:2]) or "not loaded"
         rows.append((f"{layer.name}  {layer.version}", f"{layer.role}\n[{libs}]", colour))
     shm = f"shared memory: {len(transports.shm_files)} files in /dev/shm"
-    udp = f"UDP: {len(transports.udp_ports)} ports"
+    udp = f"UDP: {len(transports.udp_sockets)} sockets on {', '.join(transports.addresses)}"
     rows.append(("transport", f"{shm}   |   {udp}", "#e5e7eb"))
     fig, ax = plt.subplots(figsize=(9.5, 0.62 * len(rows) + 0.6))
     ax.set_xlim(0, 1)

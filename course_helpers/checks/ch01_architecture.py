@@ -1,10 +1,12 @@
 """Checker of chapter 01 (architecture): a watchdog that notices a crashed talker by its silence.
 
-The student's node subscribes to ``chatter`` (std_msgs/String, '<sender>: <count>') and publishes
-the name of every sender that went quiet on ``silent_talkers``. The checker starts two talker
-processes, kills one with SIGKILL, and checks that the watchdog reports it, once, long before the
-ROS graph forgets the dead node (the talkers announce a 5 s lease, so a crashed one stays listed
-that long, and leaves before a second run of the notebook could list it twice).
+The student's node, ``silence_watchdog``, subscribes to ``chatter`` (std_msgs/String,
+'<sender>: <count>') and publishes the name of every sender that went quiet on ``silent_talkers``.
+The checker starts two talker processes, kills one with SIGKILL, and checks that the watchdog
+reports it, once, long before the ROS graph forgets the dead node (the talkers announce a 5 s
+lease, so a crashed one stays listed that long, and leaves before a second run of the notebook
+could list it twice). Then it talks in the dead talker's name for a moment, as a restarted talker
+would, and falls silent again: the watchdog must report that new silence too.
 """
 
 from __future__ import annotations
@@ -24,6 +26,9 @@ QUIET_WINDOW_S = 1.0  # both talkers talk: no alarm may come
 REPORT_WITHIN_S = 3.0  # the watchdog must report the killed talker this soon (its silence: 0.5 s),
 # well before its lease runs out
 REPEAT_WINDOW_S = 1.0  # after the report: no second alarm about the same silence
+NODE_NAME = "silence_watchdog"
+RETURN_MESSAGES = 10  # the checker talks again in the dead talker's name: this many messages...
+RETURN_PERIOD_S = 0.05  # ...this far apart (as fast as the talkers)
 
 
 def _endpoint_types(rt, topic: str, node, publishers: bool) -> list[str]:
@@ -63,10 +68,15 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
     with student_node(report, rt, node_class, "watchdog_checker") as (node, probe):
         if node is None:
             return report
+        name = node.get_name()
+        named = name == NODE_NAME
+        report.add(f"the node is named {NODE_NAME}", named, "" if named else f"its name is {name!r}",
+                   hint="The name is the first argument of super().__init__ in your constructor.")
         subscribes = _has_endpoint(report, rt, node, "/chatter", False,
-                                   "self.create_subscription(String, 'chatter', self.on_chatter, 10)")
+                                   "TODO 1: chapter 00's Listener shows how a node subscribes; the topic "
+                                   "and the type are in the task.")
         publishes = _has_endpoint(report, rt, node, "/silent_talkers", True,
-                                  "self.create_publisher(String, 'silent_talkers', 10)")
+                                  "Compare your publisher's topic and message type with the task.")
         if not (subscribes and publishes):
             report.add("two talkers, one killed", False, "not run: the node must subscribe and publish first",
                        hint="Fix the criteria above, then check again.")
@@ -75,8 +85,9 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
         heard: set[str] = set()
         probe.create_subscription(String, "silent_talkers", lambda m: alarms.append(m.data), 10)
         probe.create_subscription(String, "chatter", lambda m: heard.add(m.data.split(":", 1)[0]), 10)
+        impostor = probe.create_publisher(String, "chatter", 10)
         try:
-            _run_scenario(report, rt, alarms, heard)
+            _run_scenario(report, rt, alarms, heard, impostor)
         finally:
             for label in TALKERS:
                 if label in rt.children():
@@ -87,7 +98,7 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
     return report
 
 
-def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str]) -> None:
+def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str], impostor) -> None:
     dead, alive = TALKERS
     # A talker killed by an earlier check stays in the graph for its lease; a namesake of it would
     # make a watchdog that waits for the graph look right, so start once it is gone.
@@ -95,9 +106,9 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str]) -
     lease = short_lease_env(TALKER_LEASE_S)
     children = {name: rt.spawn(name, NamedTalker, {"name": name, "rate_hz": TALKER_RATE_HZ},
                                wait_for=f"/{name}", env=lease) for name in TALKERS}
-    if not report.add("the checker's two talkers are heard", poll_until(lambda: heard >= set(TALKERS), 10),
-                      "" if heard >= set(TALKERS) else "no message from one of them within 10 s",
-                      hint="The machine may be very busy; run the check again."):
+    if not poll_until(lambda: heard >= set(TALKERS), 10):  # the checker's own set-up, not a criterion
+        report.add("the checker could hear its two talkers", False, "no message from one of them within 10 s",
+                   hint="The machine may be very busy; run the check again.")
         return
     time.sleep(0.3)  # the watchdog hears them too
     sleep_unless(lambda: alarms, QUIET_WINDOW_S)
@@ -112,14 +123,25 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str]) -
     report.add(f"reports {dead} within {REPORT_WITHIN_S:g} s of its crash", reported,
                (f"after {after_s:.1f} s, while the ROS graph still listed /{dead}" if still_listed
                 else f"after {after_s:.1f} s") if reported else "no alarm naming it",
-               hint="A timer callback (every 0.1 s) must compare time.monotonic() with the time each "
-                    "sender was last heard; the ROS graph keeps a killed node for its whole lease.")
+               hint="Listen to the data, not to the graph (it keeps a killed node for its whole lease): "
+                    "what does your timer compare, ten times a second?")
     if not reported:
         return
     sleep_unless(lambda: sum(dead in a for a in alarms) > 1, REPEAT_WINDOW_S)
     repeats = sum(dead in a for a in alarms)
     report.add("reports that silence once", repeats == 1,
                "" if repeats == 1 else f"{repeats} alarms naming {dead}",
-               hint="Remember whom you reported (a set) and forget it when the sender talks again.")
+               hint="Keep track of the senders you have already reported (the skeleton's self.reported).")
     report.add(f"never reports {alive}, which keeps talking", not any(alive in a for a in alarms),
                hint="Compare each sender's own last-heard time.")
+    # The dead talker comes back (the checker talks in its name) and falls silent again.
+    before = len(alarms)
+    for count in range(RETURN_MESSAGES):
+        impostor.publish(String(data=f"{dead}: {count}"))
+        time.sleep(RETURN_PERIOD_S)
+    returned = time.monotonic()
+    again = poll_until(lambda: any(dead in a for a in alarms[before:]), REPORT_WITHIN_S)
+    report.add(f"reports {dead} again after it talked again and fell silent", again,
+               f"after {time.monotonic() - returned:.1f} s" if again else
+               f"no new alarm within {REPORT_WITHIN_S:g} s of its last message",
+               hint="A sender you reported is heard again: what must your watchdog forget then?")

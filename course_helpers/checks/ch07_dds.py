@@ -1,137 +1,201 @@
-"""Checker of chapter 07's exercise: keep two teams apart on one machine (domains and discovery range).
+"""Checker of chapter 07's exercise: a robot that its team hears and the class cannot see.
 
-The student writes ``plan(kernel_domain, spare_domain) -> {role: env}``: the extra environment
-variables for four child-process nodes. The checker starts them for real and looks at who can see
-and hear whom.
+The student writes ``private_context(domain_id)``, a new rclpy context whose participant joins ROS
+domain ``domain_id``, and ``PrivateRobot(context=...)``, a node named ``private_robot`` that publishes
+a ``std_msgs/String`` on ``robot_status`` five times a second. The checker hands them the spare
+domain reserved for this kernel, spins the node there, and proves with two probes that the team sees
+it (a listener process in that domain hears it) while the class does not (this kernel's domain,
+which stands for the domain the class shares, never lists it). It also checks that the kernel is
+left as it was: the environment its children inherit, and rclpy's signal handlers switched off.
 """
 
 from __future__ import annotations
 
+import os
 import time
+
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
 
 from course_helpers.chapters.ch07_dds import ReportingListener, heard_lines
 from course_helpers.checks import CheckReport
 from course_helpers.core.domains import reserve_spare_domain
-from course_helpers.core.names import as_full_name
+from course_helpers.core.executors import SpinThread
 from course_helpers.core.waiting import poll_until
-from course_helpers.nodes import Talker
 
-ROLES = ("talker", "listener", "monitor", "loner")
-ALLOWED_VARIABLES = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")
-ALLOWED_RANGES = ("OFF", "LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
-UNWANTED_VISIBILITY_WAIT_S = 4.5
-_NODES = {"talker": "team_talker", "listener": "team_listener", "monitor": "monitor", "loner": "loner"}
-# role -> (child-process target, its arguments besides the node name); each node names its process
-_TARGETS = {"talker": (Talker, {"topic": "team_chatter", "rate_hz": 10.0}),
-            "listener": (ReportingListener, {"topic": "team_chatter"}),
-            "monitor": (Talker, {"topic": "monitor_status", "rate_hz": 1.0}),
-            "loner": (Talker, {"topic": "loner_chatter", "rate_hz": 1.0})}
+ROBOT_NAME = "private_robot"
+STATUS_TOPIC = "/robot_status"
+STATUS_TYPE = "std_msgs/msg/String"
+TEAM_LISTENER = "team_listener"  # the probe process in the team's domain (label and node name)
+HEARD_MESSAGES = 3  # the team must hear at least this many status messages...
+HEAR_WITHIN_S = 8.0  # ...within this long (a new process starts, discovers and receives)
+HIDDEN_FOR_S = 3.0  # the class must not list the robot during this long after it was built
+ENVIRONMENT_PREFIXES = ("ROS_", "RMW_", "FASTRTPS_", "FASTDDS_")  # what children inherit and rcl reads
 
 
-def _validate(plan_result, kernel_domain: int, spare_domain: int) -> list[str]:
-    if not isinstance(plan_result, dict):
-        return [f"plan() must return a dict of role -> environment dict, got {type(plan_result).__name__}"]
-    problems = []
-    missing = [r for r in ROLES if r not in plan_result]
-    extra = [r for r in plan_result if r not in ROLES]
-    if missing:
-        problems.append(f"missing role(s): {', '.join(missing)}")
-    if extra:
-        problems.append(f"unknown role(s): {', '.join(map(str, extra))}; the roles are {', '.join(ROLES)}")
-    for role in ROLES:
-        env = plan_result.get(role, {})
-        if not isinstance(env, dict):
-            problems.append(f"{role}: the environment must be a dict, got {type(env).__name__}")
-            continue
-        for key, value in env.items():
-            if key not in ALLOWED_VARIABLES:
-                problems.append(f"{role}: {key} is not allowed here (use {', '.join(ALLOWED_VARIABLES)})")
-            elif key == "ROS_DOMAIN_ID" and str(value) not in (str(kernel_domain), str(spare_domain)):
-                problems.append(f"{role}: ROS_DOMAIN_ID={value!r}; use the kernel's domain ({kernel_domain}) "
-                                f"or the spare one reserved for you ({spare_domain}), so no other kernel is "
-                                "disturbed")
-            elif key == "ROS_AUTOMATIC_DISCOVERY_RANGE" and str(value).upper() not in ALLOWED_RANGES:
-                problems.append(f"{role}: ROS_AUTOMATIC_DISCOVERY_RANGE={value!r}; "
-                                f"allowed: {', '.join(ALLOWED_RANGES)}")
-            elif key == "ROS_AUTOMATIC_DISCOVERY_RANGE" and str(value).upper() == "SUBNET":
-                problems.append(f"{role}: SUBNET would announce the node to the whole network; keep it "
-                                "on this machine")
-    loner_domain = str(plan_result.get("loner", {}).get("ROS_DOMAIN_ID", kernel_domain)) \
-        if isinstance(plan_result.get("loner"), dict) else str(kernel_domain)
-    if loner_domain != str(kernel_domain):
-        problems.append("loner: it must stay in the kernel's domain; isolate it another way")
-    return problems
+def _ros_environment() -> dict[str, str]:
+    return {k: v for k, v in os.environ.items() if k.startswith(ENVIRONMENT_PREFIXES)}
 
 
-class _Visibility:
-    """Which of the nodes that should stay hidden the kernel has seen in its graph so far."""
+def _restore_environment(saved: dict[str, str]) -> list[str]:
+    """Put the ROS variables of ``os.environ`` back as ``saved``; return the names that had changed."""
+    changed = sorted(k for k in set(saved) | set(_ros_environment()) if os.environ.get(k) != saved.get(k))
+    for key in changed:
+        if key in saved:
+            os.environ[key] = saved[key]
+        else:
+            os.environ.pop(key, None)
+    return changed
+
+
+class _ClassView:
+    """Whether the kernel's domain (the class) has listed the robot or its topic so far."""
 
     def __init__(self, rt):
         self.rt = rt
-        self.team = self.loner = False
+        self.seen: list[str] = []
 
-    def everything(self) -> bool:
-        """Look at the graph once; True when both the team and the loner have been seen."""
-        nodes = self.rt.graph_nodes()
-        self.team = self.team or any(as_full_name(_NODES[role]) in nodes for role in ("talker", "listener"))
-        self.loner = self.loner or as_full_name(_NODES["loner"]) in nodes
-        return self.team and self.loner
+    def look(self) -> bool:
+        if not self.seen:
+            nodes = self.rt.graph_nodes()
+            topics = {name for name, _types in self.rt.graph.get_topic_names_and_types()}
+            self.seen = ([f"/{ROBOT_NAME}"] if f"/{ROBOT_NAME}" in nodes else []) + (
+                [STATUS_TOPIC] if STATUS_TOPIC in topics else [])
+        return bool(self.seen)
 
 
-def check_domain_plan(plan, rt=None) -> CheckReport:
-    """Run the four nodes with the environments ``plan(kernel_domain, spare_domain)`` returns.
+def check_private_robot(node_class, make_context, rt=None) -> CheckReport:
+    """Check the student's ``PrivateRobot`` and ``private_context`` in the spare domain.
 
-    ``plan`` is the student's function; ``rt`` the runtime (the kernel's by default). Returns a
-    :class:`CheckReport`. Passes when: the team's listener hears the team's talker; the notebook
-    cannot see the team; the notebook sees the monitor; nobody in the kernel's domain sees the loner.
+    Args:
+        node_class: the student's Node subclass, built as ``node_class(context=...)``.
+        make_context: the student's ``private_context(domain_id)``.
+        rt: the course runtime (default: this kernel's).
+
+    Returns:
+        A :class:`CheckReport`. It passes when the function leaves ``os.environ`` and rclpy's
+        signal handlers as they were and returns an initialised context in the given domain; the
+        node, built in that context, is named ``private_robot`` and publishes String on
+        ``/robot_status``; a listener process in that domain hears it; and the kernel's domain
+        never lists the node or its topic.
     """
     from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
-    report = CheckReport("Exercise 07.1 - two teams on one machine")
-    kernel_domain = rt.domain.domain_id
-    spare_domain = reserve_spare_domain()
-    result = report.run("plan() runs", lambda: plan(kernel_domain, spare_domain),
-                        hint="plan(kernel_domain, spare_domain) must return a dict.")
-    if result is None and not report.criteria:
-        report.add("plan() returns a dict", False, "it returned None",
-                   hint="End plan() with `return {'talker': {...}, 'listener': {...}, ...}`.")
-    if report.criteria:
+    report = CheckReport("Exercise 07.1 - a robot the class cannot see")
+    spare = reserve_spare_domain()
+    # The class's participant exists before the student's: a participant created later would learn
+    # of the robot only at the robot's next periodic announcement, and might miss it in the window.
+    rt.graph_nodes()
+    environment = _ros_environment()
+    handlers = get_current_signal_handlers_options()
+    context = report.run("private_context(domain_id) runs", lambda: make_context(spare),
+                         hint="Read the error; private_context receives the domain number as an int.")
+    _check_kernel_kept(report, environment, handlers)
+    if context is None:
         return report
-    problems = _validate(result, kernel_domain, spare_domain)
-    if not report.add("the plan uses only the allowed roles and variables", not problems, "; ".join(problems),
-                      hint="Each role maps to a dict such as {'ROS_DOMAIN_ID': str(spare_domain)} or {}."):
-        return report
-    env = {role: {k: str(v) for k, v in result[role].items()} for role in ROLES}
+    ours = isinstance(context, Context) and context is not rt.context
     try:
-        started = time.monotonic()
-        children = {role: rt.spawn(_NODES[role], target, params={"name": _NODES[role], **params},
-                                   env=env[role]) for role, (target, params) in _TARGETS.items()}
-        heard = poll_until(lambda: heard_lines(children["listener"]), 8.0)
-        report.add("the team's listener hears the team's talker", bool(heard),
-                   "" if heard else "nothing heard in 8 s",
-                   hint="Both must share a domain and be able to discover each other (a discovery range "
-                        "of OFF hides a node from everyone, its own team included).")
-        sees_monitor = poll_until(lambda: "/monitor" in rt.graph_nodes(), 8.0)
-        report.add("your notebook sees the monitor", sees_monitor,
-                   "" if sees_monitor else "/monitor not in the graph after 8 s",
-                   hint="The monitor must be in the kernel's domain with a discovery range that reaches you.")
-        # A new process that loses the race for the first answer waits one announcement period
-        # (0.1 s with the course's profile, 3 s with Fast DDS's), and a busy machine adds to it: give
-        # unwanted visibility a fair chance before declaring the team and the loner hidden.
-        seen = _Visibility(rt)
-        poll_until(seen.everything, max(0.0, started + UNWANTED_VISIBILITY_WAIT_S - time.monotonic()),
-                   period=0.1)
-        seen_team, seen_loner = seen.team, seen.loner
-        report.add("your notebook cannot see the team", not seen_team,
-                   "a team node is in your graph" if seen_team else "",
-                   hint="Put the team in another domain: the spare one reserved for you.")
-        report.add("nobody in your domain sees the loner", not seen_loner,
-                   "/loner is in your graph" if seen_loner else "",
-                   hint="Without leaving the domain, a node can switch automatic discovery off: "
-                        "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF.")
+        if _check_context(report, rt, context, spare):
+            _check_robot(report, rt, node_class, context, spare)
     finally:
-        rt.stop_children(_NODES.values())
+        if ours and context.ok():
+            context.try_shutdown()
     return report
 
 
+def _check_kernel_kept(report: CheckReport, environment: dict[str, str], handlers) -> None:
+    changed = _restore_environment(environment)  # put back at once: later children must not inherit it
+    report.add("the kernel's environment is left as it was", not changed,
+               f"changed: {', '.join(changed)} (the checker put them back)" if changed else "",
+               hint="Every process this kernel starts later inherits os.environ. Find where the domain "
+                    "can be given to the context itself: help(Context.init).")
+    installed = get_current_signal_handlers_options() != handlers
+    if installed and handlers == SignalHandlerOptions.NO:
+        uninstall_signal_handlers()
+    report.add("rclpy's signal handlers stay off", not installed,
+               "rclpy's handlers were installed (the checker removed them again)" if installed else "",
+               hint="Chapter 00, section 1: why the course's contexts run without rclpy's signal handler. "
+                    "Compare help(rclpy.init) with help(Context.init).")
+
+
+def _check_context(report: CheckReport, rt, context, domain: int) -> bool:
+    """The context criterion; True when the context runs (in any domain), so the robot can be tried."""
+    if not isinstance(context, Context):
+        report.add("private_context(domain_id) returns an initialised Context in that domain", False,
+                   f"it returned {type(context).__name__}, not an rclpy Context",
+                   hint="Return the context itself (from rclpy.context import Context).")
+        return False
+    if context is rt.context:
+        report.add("private_context(domain_id) returns an initialised Context in that domain", False,
+                   "that is the kernel's own context", hint="Create a new Context of your own.")
+        return False
+    if not context.ok():
+        report.add("private_context(domain_id) returns an initialised Context in that domain", False,
+                   "the context is not initialised (context.ok() is False)",
+                   hint="A new Context does nothing until it is initialised: help(Context.init).")
+        return False
+    actual = context.get_domain_id()
+    wrong = f"it is in domain {actual}, not in {domain}, the domain it was given"
+    report.add("private_context(domain_id) returns an initialised Context in that domain", actual == domain,
+               "" if actual == domain else wrong,
+               hint="Which domain does a context join when nobody tells it? help(Context.init).")
+    return True
+
+
+def _check_robot(report: CheckReport, rt, node_class, context, team_domain: int) -> None:
+    started = time.monotonic()
+    node = report.run("PrivateRobot(context=...) builds its node in that context",
+                      lambda: node_class(context=context),
+                      hint="help(Node): which argument of Node's constructor says where a node lives?")
+    if node is None:
+        return
+    in_context = node.context is context
+    if not report.add("PrivateRobot(context=...) builds its node in that context", in_context,
+                      "" if in_context else "the node joined another context",
+                      hint="help(Node): which argument of Node's constructor says where a node lives?"):
+        node.destroy_node()  # it lives elsewhere: nothing below would test the private context
+        return
+    name = node.get_name()
+    report.add(f"the node is named {ROBOT_NAME}", name == ROBOT_NAME,
+               "" if name == ROBOT_NAME else f"its name is {name!r}",
+               hint="The name is the first argument of super().__init__ in your constructor.")
+    topics = dict(node.get_publisher_names_and_types_by_node(name, node.get_namespace()))
+    publishes = topics.get(STATUS_TOPIC) == [STATUS_TYPE]
+    report.add(f"it publishes {STATUS_TYPE} on {STATUS_TOPIC}", publishes,
+               "" if publishes else f"it publishes on: {', '.join(sorted(topics)) or 'nothing'}",
+               hint="Compare the topic name and message type of your publisher with the task.")
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    errors: list[BaseException] = []
+    spinner = SpinThread(executor, "private-robot", errors.append).start()
+    view = _ClassView(rt)
+    try:
+        team = rt.spawn(TEAM_LISTENER, ReportingListener,
+                        params={"name": TEAM_LISTENER, "topic": STATUS_TOPIC.lstrip("/")},
+                        env={"ROS_DOMAIN_ID": str(team_domain)})
+
+        def team_heard() -> bool:
+            view.look()  # the class looks all along
+            return len(heard_lines(team)) >= HEARD_MESSAGES
+
+        heard = poll_until(team_heard, HEAR_WITHIN_S)
+        count = len(heard_lines(team))
+        report.add("its team hears it: a listener process in its domain receives its status", heard,
+                   "" if heard else f"{count} message(s) heard in {HEAR_WITHIN_S:g} s",
+                   hint="Does something publish again and again? Chapter 00 showed the usual way.")
+        # Whatever the class can see stays in its graph while the node lives: looking until
+        # HIDDEN_FOR_S after the node was built gives discovery time to show it.
+        poll_until(view.look, max(0.0, started + HIDDEN_FOR_S - time.monotonic()), period=0.1)
+        report.add("the class cannot see it: this kernel's domain never lists it", not view.seen,
+                   f"the kernel's graph listed {' and '.join(view.seen)}" if view.seen else "",
+                   hint="The class sees everything in its own domain: which domain is your context in?")
+    finally:
+        rt.stop_child(TEAM_LISTENER)
+        spinner.stop()
+        executor.shutdown(timeout_sec=2)
+        node.destroy_node()
+    report.add("callbacks raised no errors", not errors,
+               f"{type(errors[0]).__name__}: {errors[0]}" if errors else "",
+               hint="Run the node's callback yourself once and read the traceback.")

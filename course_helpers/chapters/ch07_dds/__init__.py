@@ -11,7 +11,7 @@
 * :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;
 * :mod:`.middleware` - the active and the installed rmw implementations;
 * :mod:`.transports` - one message bounced in one process, over shared memory and over UDP;
-* :mod:`.security` - what Fast DDS says when asked for DDS security.
+* :mod:`.security` - what rcl and Fast DDS do when a node asks for DDS security.
 
 The notebook uses ``from course_helpers.chapters import ch07_dds as dds`` and ``dds.<name>``.
 """
@@ -46,7 +46,11 @@ from course_helpers.chapters.ch07_dds.names import (
     ros_type_from_dds,
     show_dds_entities,
 )
-from course_helpers.chapters.ch07_dds.security import secure_node_attempt, try_secure_node
+from course_helpers.chapters.ch07_dds.security import (
+    empty_keystore,
+    secure_node_attempts,
+    try_security_settings,
+)
 from course_helpers.chapters.ch07_dds.server import (
     DiscoveryServer,
     free_udp_port,
