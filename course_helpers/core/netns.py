@@ -87,6 +87,18 @@ class NetworkNamespace:
         """Start ``argv`` (from :func:`processes.python_target_argv`) inside as a course child."""
         return processes.start(label, self.enter(argv), group=group, env=env, **options)
 
+    def received_bytes(self, interface: str = "lo") -> int:
+        """Bytes ``interface`` inside this namespace has received so far (0 if it has none)."""
+        try:
+            with open(f"/proc/{self.pid}/net/dev", encoding="ascii") as handle:
+                for line in handle:
+                    name, _, data = line.partition(":")
+                    if name.strip() == interface:
+                        return int(data.split()[0])
+        except (OSError, ValueError, IndexError):
+            pass
+        return 0
+
     def close(self) -> None:
         """Stop the holder. Linux removes the namespace once its last process has ended."""
         processes.stop([self.label], group=GROUP)

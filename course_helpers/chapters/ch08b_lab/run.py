@@ -42,6 +42,9 @@ _IDLE_END_S = 0.5  # after the publisher is done, end when nothing arrived for t
 _RELIABLE_IDLE_END_S = 3.5  # a late joiner that got nothing yet: one Fast DDS heartbeat period (3 s) and more
 _LATE_JOIN_LISTEN_S = 1.0  # a matched late joiner listens this long after its last sample
 _DRAIN_LIMIT_S = 2.0  # after the publisher is done, wait at most this long (x3 for reliable)
+# Reliable on the lossy link: a repair waits for a heartbeat (Fast DDS sends one every 3 s when idle),
+# and heartbeats and acknowledgements are lost too: wait up to five such periods.
+_LINK_REPAIR_LIMIT_S = 15.0
 _START_POLL_S = 0.02  # while the publisher starts: how often to look for its first report
 
 _run_lock = threading.Lock()
@@ -120,9 +123,11 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
                   "wait_for_subscriber": not config.late_joiner,
                   "wait_for_node": rt.graph.get_fully_qualified_name() if config.late_joiner else None,
                   "deadline_s": _send_deadline_s(config)}
-        if link is not None:  # both ends on the link, the subscriber first
+        if link is not None:  # both ends on the link, the subscriber first; the publisher waits for its word
+            params["ready_topic"] = f"{run.topic}_ready"
             sub_argv = processes.python_target_argv(ReportingLabSubscriber, {
-                "topic": run.topic, "qos": config.qos_dict(), "processing_ms": config.processing_ms})
+                "topic": run.topic, "qos": config.qos_dict(), "processing_ms": config.processing_ms,
+                "ready_topic": params["ready_topic"]})
             run.sub = RemoteSubscriber(link.start(SUBSCRIBER_LABEL, sub_argv, env=env))
             child = link.start(CHILD_LABEL, processes.python_target_argv(LabPublisher, params), env=env)
         else:
@@ -235,6 +240,8 @@ def _drain_hopeless(run, now, config) -> bool:
     """After the publisher is done: stop waiting for queued samples after a while."""
     waited = now - run.summary_at
     limit = _DRAIN_LIMIT_S * (3 if config.reliability == "reliable" else 1)
+    if config.reliability == "reliable" and config.transport == "lossy_link":
+        limit = _LINK_REPAIR_LIMIT_S
     if waited > limit:
         return True
     if waited < 0.5 or len(run.timeline) < 2:

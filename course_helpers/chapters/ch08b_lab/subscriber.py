@@ -14,6 +14,7 @@ from array import array
 from course_interfaces.msg import ExperimentSample
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+from std_msgs.msg import Empty
 
 from course_helpers.core.channel import report
 from course_helpers.core.qos_dict import qos_from_dict
@@ -80,11 +81,18 @@ class ReportingLabSubscriber(LabSubscriber):
 
     Every ``report_period_s`` it sends ``report('progress', ...)`` with :meth:`counts`, and one
     last ``report('final', ...)`` when it is destroyed (the process was asked to stop), so the
-    kernel reads the exact totals over the process channel.
+    kernel reads the exact totals over the process channel. Once its subscription has matched a
+    publisher it says so on ``ready_topic`` (the publisher waits for that before it sends).
     """
 
-    def __init__(self, topic: str, qos: dict, processing_ms: float = 0.0, report_period_s: float = 0.1):
+    def __init__(self, topic: str, qos: dict, processing_ms: float = 0.0, report_period_s: float = 0.1,
+                 ready_topic: str | None = None):
         super().__init__(topic, qos, processing_ms, joins_before_first_sample=True)
+        self.ready_publisher = None
+        if ready_topic is not None:
+            from course_helpers.chapters.ch08b_lab.publisher import READY_QOS
+
+            self.ready_publisher = self.create_publisher(Empty, ready_topic, READY_QOS)
         self.report_timer = self.create_timer(report_period_s, self.send_progress)  # period [s]
 
     def counts(self) -> dict:
@@ -97,7 +105,11 @@ class ReportingLabSubscriber(LabSubscriber):
                 "latency_ms": latency_percentiles(self.latency_ns)}
 
     def send_progress(self) -> None:
-        report("progress", **self.counts())
+        counts = self.counts()
+        if counts["matched"] and self.ready_publisher is not None:
+            self.ready_publisher.publish(Empty())  # once is enough (transient local, reliable)
+            self.ready_publisher = None
+        report("progress", **counts)
 
     def destroy_node(self):
         report("final", **self.counts())
