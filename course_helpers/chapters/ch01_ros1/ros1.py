@@ -39,8 +39,8 @@ SCRIPTS = {role: os.path.join(HERE, f"rospy_{role}.py") for role in ("talker", "
 INSTALL = {
     "debian 12": f"sudo apt-get install {PACKAGES}",
     "ubuntu 22.04": f"sudo apt-get install {PACKAGES}  (from Ubuntu's universe component)",
-    "ubuntu 24.04": "Ubuntu 24.04 has no ROS 1 packages: run the course's container image, "
-                    "or a Debian 12 or Ubuntu 22.04 machine",
+    "ubuntu 24.04": "Ubuntu 24.04 has no ROS 1 packages: use a Debian 12 or Ubuntu 22.04 machine "
+                    "or container",
 }
 
 _probe_lock = threading.Lock()
@@ -66,7 +66,7 @@ def install_hint(os_release: str = "/etc/os-release") -> str:
     if system in INSTALL:
         return INSTALL[system]
     return (f"on Debian 12 or Ubuntu 22.04: sudo apt-get install {PACKAGES} "
-            "(Ubuntu 24.04 has none; use the course's container image)")
+            "(Ubuntu 24.04 has none)")
 
 
 def ros1_unavailable_reason() -> str | None:
