@@ -343,3 +343,14 @@ def _net_ns_of(pid: int) -> str:
         return os.readlink(f"/proc/{pid}/ns/net")
     except OSError:
         return ""
+
+
+def test_a_discovery_server_is_a_master_again_until_it_comes_back(rt):
+    """Chapter 07's return to the failure experiment: kill the discovery server under a talking pair."""
+    from course_helpers.chapters.ch07_dds.server_failure import LABELS, server_failure_experiment
+
+    result = server_failure_experiment(rt)
+    assert result.kept_talking  # data never went through the server
+    assert not result.newcomer_heard_without_server and result.window_s >= 2.0  # nobody to ask
+    assert result.newcomer_after_restart_s is not None, result  # the clients called the new server
+    assert not set(LABELS) & set(rt.children())

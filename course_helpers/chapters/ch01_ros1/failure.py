@@ -28,7 +28,7 @@ from course_helpers.nodes.chatter import Listener, make_talker
 RATE_HZ = 10.0  # the talker's rate, both systems
 KEEP_TALKING_MESSAGES = 5  # "the pair keeps talking" = this many more messages after the kill
 KEEP_TALKING_TIMEOUT_S = 5.0
-MIN_WINDOW_S = 2.0  # a newcomer gets at least this long (and 5x what the first listener needed)
+MIN_WINDOW_S = 2.0  # a newcomer gets at least this long (and twice what the first listener needed)
 START_TIMEOUT_S = 20.0
 
 
@@ -80,7 +80,7 @@ def ros1_failure_experiment(topic: str = "/chatter") -> FailureResult:
         known_before = master.nodes()
         master.kill()
         kept, kept_s = _keeps_talking(listener)
-        window = max(MIN_WINDOW_S, 5 * first)
+        window = max(MIN_WINDOW_S, 2 * first)
         newcomer = start_rospy("newcomer", "listener", master, topic)
         newcomer_s = _first_message(newcomer, window)
         restarted_at = time.monotonic()
@@ -121,7 +121,7 @@ def ros2_failure_experiment(rt, topic: str = "failure_chatter") -> FailureResult
         known_before = sorted(wanted & set(rt.graph_nodes()))
         first_node.kill()
         kept, kept_s = _keeps_talking(listener)
-        window = max(MIN_WINDOW_S, 5 * first)
+        window = max(MIN_WINDOW_S, 2 * first)
         newcomer = rt.spawn("failure_newcomer", Listener, params={"name": names["newcomer"], "topic": topic,
                                                                   "report_heard": True})
         newcomer_s = _first_message(newcomer, window)

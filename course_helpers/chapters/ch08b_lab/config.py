@@ -199,13 +199,13 @@ PRESETS: dict[str, dict] = {
     },
     "Wi-Fi link, 10 % loss": {
         "what": "Both ends on a private network link that drops 10 % of the UDP datagrams, as a busy "
-                "Wi-Fi link can: 400 samples of 1 KiB at 200 Hz, KEEP_LAST 400 so that no queue "
+                "Wi-Fi link can: 400 samples of 1 KiB at 400 Hz, KEEP_LAST 400 so that no queue "
                 "overflows. Best effort delivers about 90 % of them; reliable repairs every loss, and "
                 "the repairs show in its p99 latency.",
         "configs": [
-            ExperimentConfig(reliability="best_effort", depth=400, rate_hz=200, duration_s=2.0,
+            ExperimentConfig(reliability="best_effort", depth=400, rate_hz=400, duration_s=1.0,
                              transport="lossy_link", loss_percent=10, label="best effort, 10 % loss"),
-            ExperimentConfig(reliability="reliable", depth=400, rate_hz=200, duration_s=2.0,
+            ExperimentConfig(reliability="reliable", depth=400, rate_hz=400, duration_s=1.0,
                              transport="lossy_link", loss_percent=10, label="reliable, 10 % loss"),
         ],
     },

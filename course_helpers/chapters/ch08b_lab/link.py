@@ -11,11 +11,17 @@ Fast DDS would otherwise hand the samples over in memory, past the network). On 
 
 Everything is dropped alike: DDS discovery, data, heartbeats and acknowledgements. The link is made
 once per kernel and set for each run; it goes away with the kernel (its holder is a course child).
+
+Both ends read :func:`link_env`'s Fast DDS profile: UDP on 127.0.0.1 only, and a reliable writer
+that sends its periodic heartbeat every ``HEARTBEAT_S`` instead of Fast DDS's 3 s. A lost sample is
+repaired only after a heartbeat has made the reader ask for it, so with the default a run on a
+lossy link would spend most of its time waiting for the last repairs.
 """
 
 from __future__ import annotations
 
 from course_helpers.core import netns, processes
+from course_helpers.core.dds_config import PROFILE_ENV, RANGE_ENV, profile_xml, write_profile
 from course_helpers.core.errors import CourseError
 
 LINK_LABEL = "qos_lab_link"
@@ -23,6 +29,9 @@ SUBSCRIBER_LABEL = "qos_lab_subscriber"
 NFT_TABLE = "qos_lab"
 TBF_LATENCY_MS = 50  # how long a datagram may wait in the token bucket before it is dropped
 MIN_BURST_BYTES = 70_000  # above one 64 KiB datagram: a smaller bucket could never pass a big one
+HEARTBEAT_S = 0.25  # s; a reliable writer's periodic heartbeat on the link (Fast DDS default: 3 s)
+DEFAULT_HEARTBEAT_S = 3.0
+PROFILE = "course_lossy_link.xml"
 
 _link: list[netns.NetworkNamespace] = []
 
@@ -62,6 +71,19 @@ def lossy_link(loss_percent: int = 0, link_mbit: float = 0.0) -> netns.NetworkNa
 def _has_table(link: netns.NetworkNamespace) -> bool:
     code, _ = link.run("nft", "list", "table", "inet", NFT_TABLE, check=False)
     return code == 0
+
+
+def link_env(directory: str) -> dict:
+    """Environment of a process on the link: the link's Fast DDS profile (see the module docstring).
+
+    The range is SYSTEM_DEFAULT, so that rmw_fastrtps leaves the transports to the profile (for
+    LOCALHOST it would set up shared memory and UDP itself).
+    """
+    writer = ('  <data_writer profile_name="course_link_writer" is_default_profile="true">\n'
+              f"    <times><heartbeatPeriod><sec>0</sec><nanosec>{round(HEARTBEAT_S * 1e9)}</nanosec>"
+              "</heartbeatPeriod></times>\n  </data_writer>\n")
+    text = profile_xml(("UDPv4",)).replace("</profiles>", writer + "</profiles>")
+    return {RANGE_ENV: "SYSTEM_DEFAULT", PROFILE_ENV: write_profile(directory, PROFILE, text)}
 
 
 def link_settings(link: netns.NetworkNamespace) -> str:

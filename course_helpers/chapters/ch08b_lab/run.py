@@ -22,7 +22,7 @@ from array import array
 from dataclasses import dataclass, field
 
 from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
-from course_helpers.chapters.ch08b_lab.link import SUBSCRIBER_LABEL, RemoteSubscriber, lossy_link
+from course_helpers.chapters.ch08b_lab.link import SUBSCRIBER_LABEL, RemoteSubscriber, link_env, lossy_link
 from course_helpers.chapters.ch08b_lab.publisher import CHILD_LABEL, LabPublisher
 from course_helpers.chapters.ch08b_lab.results import (
     ExperimentResult,
@@ -42,8 +42,8 @@ _IDLE_END_S = 0.5  # after the publisher is done, end when nothing arrived for t
 _RELIABLE_IDLE_END_S = 3.5  # a late joiner that got nothing yet: one Fast DDS heartbeat period (3 s) and more
 _LATE_JOIN_LISTEN_S = 1.0  # a matched late joiner listens this long after its last sample
 _DRAIN_LIMIT_S = 2.0  # after the publisher is done, wait at most this long (x3 for reliable)
-# Reliable on the lossy link: a repair waits for a heartbeat (Fast DDS sends one every 3 s when idle),
-# and heartbeats and acknowledgements are lost too: wait up to five such periods.
+# Reliable on the lossy link: a repair waits for a heartbeat, and heartbeats and acknowledgements are
+# lost too; on a busy machine the last repairs can take seconds.
 _LINK_REPAIR_LIMIT_S = 15.0
 _START_POLL_S = 0.02  # while the publisher starts: how often to look for its first report
 
@@ -117,7 +117,11 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
     try:
         # 'shm': the child inherits the kernel's set-up, and Fast DDS uses shared memory between
         # processes of one machine; 'udp' and the link: UDP on 127.0.0.1 only (loopback_bytes shows it).
-        env = udp_loopback_env(rt.log_dir) if config.transport != "shm" else {}
+        env = {}
+        if config.transport == "udp":
+            env = udp_loopback_env(rt.log_dir)
+        elif link is not None:
+            env = link_env(rt.log_dir)
         params = {"topic": run.topic, "qos": config.qos_dict(), "rate_hz": config.rate_hz,
                   "payload_bytes": config.payload_bytes, "count": config.count,
                   "wait_for_subscriber": not config.late_joiner,
