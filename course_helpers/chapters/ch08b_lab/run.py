@@ -144,6 +144,8 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
         else:
             run.stopped = True
     finally:
+        if isinstance(run.sub, RemoteSubscriber):
+            run.sub.child.request_stop()  # both ends of the link stop together
         if child is not None:
             child.stop(grace_s=0.5)
             rt.stop_child(CHILD_LABEL)
