@@ -194,9 +194,25 @@ def test_lossy_link_settings_are_checked():
         ExperimentConfig(transport="udp", loss_percent=10)
     with pytest.raises(CourseError, match="link_mbit must be"):
         ExperimentConfig(transport="lossy_link", link_mbit=-1)
+    with pytest.raises(CourseError, match="at least 5 Mbit/s"):
+        ExperimentConfig(transport="lossy_link", link_mbit=1)
     with pytest.raises(CourseError, match="late_joiner=True runs only on"):
         ExperimentConfig(transport="lossy_link", late_joiner=True)
     assert "link 10% loss" in ExperimentConfig(transport="lossy_link", loss_percent=10).describe()
+
+
+@needs_namespaces
+def test_a_rate_limited_link_drops_what_does_not_fit(rt):
+    """64 KiB samples at 50 Hz (about 26 Mbit/s) through a 5 Mbit/s token bucket, and with no limit."""
+    from course_helpers.chapters.ch08b_lab import link_unavailable_reason, run_experiment
+
+    if link_unavailable_reason() is not None:
+        pytest.skip(link_unavailable_reason())
+    config = ExperimentConfig(reliability="best_effort", depth=50, rate_hz=50, payload_bytes=64 * 1024,
+                              duration_s=1.0, transport="lossy_link")
+    free, narrow = run_experiment(config), run_experiment(config.with_changes(link_mbit=5))
+    assert free.delivered == free.published, free.summary()
+    assert narrow.delivered_ratio < 0.5, narrow.summary()  # the bucket passes about a fifth
 
 
 # ---------------------------------------------------------------------- ROS 1

@@ -24,6 +24,7 @@ TRANSPORTS = {
 }
 MAX_LOSS_PERCENT = 50
 MAX_LINK_MBIT = 10_000.0
+MIN_LINK_MBIT = 5.0  # the lab's discovery alone (announcements to 32 ports, 10 a second) needs ~3 Mbit/s
 MAX_RATE_HZ = 5000.0
 MAX_PAYLOAD_BYTES = 4 * 1024 * 1024  # 4 MiB
 MIN_DURATION_S, MAX_DURATION_S = 0.1, 20.0
@@ -109,6 +110,10 @@ class ExperimentConfig:
             raise CourseError(f"loss_percent must be a whole number from 0 to {MAX_LOSS_PERCENT}, "
                               f"got {self.loss_percent!r}")
         _check_number("link_mbit", self.link_mbit, 0.0, MAX_LINK_MBIT, "Mbit/s (0: no limit)")
+        if 0 < self.link_mbit < MIN_LINK_MBIT:
+            raise CourseError(f"link_mbit must be 0 (no limit) or at least {MIN_LINK_MBIT:g} Mbit/s: below "
+                              "that the lab's own discovery traffic (about 3 Mbit/s) fills the link, "
+                              f"got {self.link_mbit:g}")
         if self.transport != "lossy_link" and (self.loss_percent or self.link_mbit):
             raise CourseError(f"loss_percent and link_mbit need transport='lossy_link' (a private network "
                               f"link that can lose datagrams); transport={self.transport!r} cannot lose "
