@@ -7,14 +7,65 @@ nodes and one executor thread. So each notebook runs exactly twice, and re-runni
 (what students do all the time) is tested where the notebook is tested. Set
 ``COURSE_NBVAL_RERUN=0`` to run the first pass only. ``--dist loadfile`` keeps a notebook on one
 worker (the cells also carry an xdist_group mark, which pytest 9 no longer lets pytest-xdist use).
+
+Cells that need an optional part of the machine start with a line ``# COURSE_NEEDS: <part>``
+(``ros1``: ROS 1's rospy and rosmaster for the system Python; ``netns``: private network
+namespaces). Where that part is missing, those cells (and only those) are skipped, with the
+one-line reason the course gives (``pytest -rs`` lists it). In a notebook they print that line.
 """
 
 from __future__ import annotations
 
 import os
+import re
 
 import nbformat
 import pytest
+
+NEEDS_MARK = re.compile(r"^# COURSE_NEEDS: (\w+)\s*$", re.MULTILINE)
+
+
+def _reason_ros1() -> str | None:
+    from course_helpers.chapters.ch01_ros1.ros1 import ros1_unavailable_reason
+
+    return ros1_unavailable_reason()
+
+
+def _reason_netns() -> str | None:
+    from course_helpers.core.netns import unavailable_reason
+
+    return unavailable_reason()
+
+
+NEEDS = {"ros1": _reason_ros1, "netns": _reason_netns}
+
+
+def needs_of(source: str) -> list[str]:
+    """The optional parts a cell's source says it needs (``# COURSE_NEEDS: ros1`` lines)."""
+    return NEEDS_MARK.findall(source)
+
+
+def skip_reason(source: str, reasons: dict) -> str | None:
+    """Why a cell must be skipped here (its first missing part), or None. ``reasons`` caches the probes."""
+    for part in needs_of(source):
+        if part not in NEEDS:
+            raise pytest.UsageError(f"# COURSE_NEEDS: {part} is not a known part; known: {sorted(NEEDS)}")
+        if part not in reasons:
+            reasons[part] = NEEDS[part]()
+        if reasons[part] is not None:
+            return f"needs {part}: {reasons[part]}"
+    return None
+
+
+def _skip_missing_parts(items) -> None:
+    from nbval.plugin import IPyNbCell
+
+    reasons: dict = {}
+    for item in items:
+        if isinstance(item, IPyNbCell):
+            reason = skip_reason(item.cell.source, reasons)
+            if reason is not None:
+                item.add_marker(pytest.mark.skip(reason=reason))
 
 AFTER_RERUN = """
 import collections, threading
@@ -30,6 +81,7 @@ assert not _dupes and _threads == 1, (
 
 def pytest_collection_modifyitems(session, config, items):
     if os.environ.get("COURSE_NBVAL_RERUN", "1") == "0":
+        _skip_missing_parts(items)
         return
     from nbval.plugin import IPyNbCell
 
@@ -54,6 +106,7 @@ def pytest_collection_modifyitems(session, config, items):
     for item in ordered:
         if isinstance(item, IPyNbCell):
             item.add_marker(pytest.mark.xdist_group(f"notebook-{item.parent.name}"))
+    _skip_missing_parts(ordered)
     items[:] = ordered
 
 

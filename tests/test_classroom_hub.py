@@ -27,7 +27,6 @@ import secrets
 import shutil
 import signal
 import socket
-import stat
 import subprocess
 import sys
 import tempfile
@@ -41,6 +40,9 @@ import pytest
 from course_helpers.core.dds_config import udp_loopback_env
 from course_helpers.core.domains import domain_free, domain_holders
 from course_helpers.core.waiting import poll_until
+
+from .shared_install import closed_to_others as _closed_to_others
+from .shared_install import shared_venv as _shared_venv
 
 REPO = Path(__file__).resolve().parent.parent
 CONFIG = REPO / "classroom" / "jupyterhub_config.py"
@@ -63,46 +65,9 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-def _closed_to_others(path: Path) -> str | None:
-    """The first directory on the way to ``path`` (symlinks followed) that other users cannot
-    enter, or ``path`` itself if they cannot read it; None if the way is open."""
-    parts = Path(os.path.realpath(path)).parts
-    for depth in range(2, len(parts) + 1):
-        step = os.path.join(*parts[:depth])
-        mode = os.stat(step).st_mode
-        if not mode & (0o001 if stat.S_ISDIR(mode) else 0o004):
-            return step
-    return None
-
-
 def _proxy() -> str | None:
     found = os.environ.get("ROS2_COURSE_PROXY") or shutil.which("configurable-http-proxy")
     return found or (str(LOCAL_PROXY) if LOCAL_PROXY.exists() else None)
-
-
-def _shared_venv(workdir: Path) -> Path:
-    """A course venv every user can run: this one if it already is, else a hard-linked copy of it
-    whose interpreter is the system Python of the same version (as docs/classroom.md installs it)."""
-    if _closed_to_others(Path(sys.executable)) is None:
-        return Path(sys.prefix)
-    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
-    system_python = Path("/usr/bin") / version
-    if not system_python.exists() or _closed_to_others(system_python):
-        pytest.skip(f"{sys.executable} is closed to other users ({_closed_to_others(Path(sys.executable))}) "
-                    f"and there is no /usr/bin/{version} to build a shared course venv with")
-    venv = workdir / "venv"
-    copied = subprocess.run(["cp", "-al", sys.prefix, str(venv)], capture_output=True, text=True)
-    if copied.returncode != 0:
-        pytest.skip(f"could not hard-link {sys.prefix} into {venv}: {copied.stderr.strip()}")
-    # New files only: the links and pyvenv.cfg are replaced, never written through (they are shared).
-    for name in ("python", "python3", version):
-        (venv / "bin" / name).unlink(missing_ok=True)
-        (venv / "bin" / name).symlink_to(system_python)
-    (venv / "pyvenv.cfg").unlink()
-    (venv / "pyvenv.cfg").write_text(f"home = /usr/bin\ninclude-system-site-packages = false\n"
-                                     f"version = {sys.version_info.major}.{sys.version_info.minor}."
-                                     f"{sys.version_info.micro}\n")
-    return venv
 
 
 def _remove_user(name: str) -> None:

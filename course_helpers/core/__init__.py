@@ -12,6 +12,8 @@ plots or the ``%ros2`` magics.
   channel on which a child reports to the kernel;
 * ``domains``, ``dds_config``, ``shm_ports``: a ROS domain per kernel, machine-wide, how
   participants discover each other, and the shared-memory files old processes left behind;
+* ``netns``: private network namespaces whose processes are course children (a lossy link,
+  two machines on one box);
 * ``console``, ``logs``: node consoles under the cell that started a node;
 * ``names``, ``validation``, ``qos_dict``, ``msg_yaml``, ``units``, ``versions``,
   ``errors``: small conversions and checks with errors a student can act on;

@@ -12,6 +12,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
+from course_helpers.core.channel import report
+
 
 class Talker(Node):
     """Publishes 'hello N' on a topic at a fixed rate."""
@@ -31,19 +33,26 @@ class Talker(Node):
 
 
 class Listener(Node):
-    """Subscribes to a String topic and keeps what it heard."""
+    """Subscribes to a String topic and keeps what it heard.
+
+    In a child process, ``report_heard=True`` also sends each message to the kernel as
+    ``report('heard', data=...)`` over the process channel.
+    """
 
     def __init__(self, name: str = "listener", topic: str = "chatter", namespace: str = "",
-                 qos: QoSProfile | int = 10, echo: bool = False):
+                 qos: QoSProfile | int = 10, echo: bool = False, report_heard: bool = False):
         super().__init__(name, namespace=namespace)
         self.heard: list[str] = []
         self.echo = echo
+        self.report_heard = report_heard
         self.subscription = self.create_subscription(String, topic, self.on_message, qos)
 
     def on_message(self, msg: String) -> None:
         self.heard.append(msg.data)
         if self.echo:
             self.get_logger().info(f"I heard: {msg.data}")
+        if self.report_heard:
+            report("heard", data=msg.data)
 
 
 def make_talker(name: str = "talker", topic: str = "chatter", rate_hz: float = 2.0,

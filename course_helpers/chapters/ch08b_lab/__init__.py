@@ -4,6 +4,8 @@
 * ``publisher``: :class:`LabPublisher`, the node that runs in a child process;
 * ``subscriber``: :class:`LabSubscriber`, the counting node in the kernel;
 * ``run``: :func:`run_experiment`, one run from start to clean-up;
+* ``link``: the lossy link (both ends in a private network namespace that drops a share of UDP),
+  :func:`link_unavailable_reason` where it cannot be made;
 * ``results``: :class:`Snapshot` and :class:`ExperimentResult`;
 * ``plots``: :func:`draw_results` and the live :class:`ResultsFigure`;
 * ``panel``: :func:`qos_lab`, the widget panel.
@@ -19,6 +21,7 @@ from course_helpers.chapters.ch08b_lab.config import (
     ExperimentConfig,
     preset,
 )
+from course_helpers.chapters.ch08b_lab.link import link_unavailable_reason
 from course_helpers.chapters.ch08b_lab.publisher import CHILD_LABEL, LabPublisher
 from course_helpers.chapters.ch08b_lab.results import ExperimentResult, Snapshot
 from course_helpers.chapters.ch08b_lab.run import run_experiment
@@ -26,7 +29,7 @@ from course_helpers.chapters.ch08b_lab.subscriber import LabSubscriber
 
 __all__ = ["CHILD_LABEL", "MAX_DEPTH", "MAX_PAYLOAD_BYTES", "PRESETS", "TRANSPORTS", "ExperimentConfig",
            "ExperimentResult", "LabPublisher", "LabSubscriber", "QoSLab", "ResultsFigure", "Snapshot",
-           "draw_results", "preset", "qos_lab", "run_experiment"]
+           "draw_results", "link_unavailable_reason", "preset", "qos_lab", "run_experiment"]
 
 _LAZY = {"qos_lab": "panel", "QoSLab": "panel", "draw_results": "plots", "ResultsFigure": "plots"}
 

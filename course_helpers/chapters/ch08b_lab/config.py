@@ -19,7 +19,12 @@ HISTORY = ("keep_last", "keep_all")
 TRANSPORTS = {
     "shm": "shared memory (what Fast DDS uses between processes on one machine)",
     "udp": "UDP through the loopback interface only (as between two machines)",
+    "lossy_link": "UDP over a private network link that drops loss_percent of the datagrams "
+                  "(both ends in child processes inside a network namespace)",
 }
+MAX_LOSS_PERCENT = 50
+MAX_LINK_MBIT = 10_000.0
+MIN_LINK_MBIT = 5.0  # the lab's discovery alone (announcements to 32 ports, 10 a second) needs ~3 Mbit/s
 MAX_RATE_HZ = 5000.0
 MAX_PAYLOAD_BYTES = 4 * 1024 * 1024  # 4 MiB
 MIN_DURATION_S, MAX_DURATION_S = 0.1, 20.0
@@ -41,7 +46,9 @@ class ExperimentConfig:
     sample; transport: 'shm' (Fast DDS default, shared memory) | 'udp' (UDP loopback only);
     duration_s: how long the publisher sends (it sends ``rate_hz * duration_s`` samples);
     late_joiner: the subscriber is created only after the publisher has sent everything;
-    label: a name for tables and plots (default: :meth:`describe` builds one).
+    label: a name for tables and plots (default: :meth:`describe` builds one);
+    loss_percent: with transport 'lossy_link', the share of UDP datagrams the link drops (0..50);
+    link_mbit: with transport 'lossy_link', the link's capacity in Mbit/s (0: no limit).
     """
 
     reliability: str = "reliable"
@@ -55,6 +62,8 @@ class ExperimentConfig:
     duration_s: float = 2.0
     late_joiner: bool = False
     label: str = ""
+    loss_percent: int = 0
+    link_mbit: float = 0.0
 
     def __post_init__(self):
         _check_choice("reliability", self.reliability, RELIABILITY)
@@ -93,6 +102,26 @@ class ExperimentConfig:
             raise CourseError(f"late_joiner must be True or False, got {self.late_joiner!r}")
         if not isinstance(self.label, str):
             raise CourseError(f"label must be a string, got {self.label!r}")
+        self._check_link()
+
+    def _check_link(self) -> None:
+        if (isinstance(self.loss_percent, bool) or not isinstance(self.loss_percent, int)
+                or not 0 <= self.loss_percent <= MAX_LOSS_PERCENT):
+            raise CourseError(f"loss_percent must be a whole number from 0 to {MAX_LOSS_PERCENT}, "
+                              f"got {self.loss_percent!r}")
+        _check_number("link_mbit", self.link_mbit, 0.0, MAX_LINK_MBIT, "Mbit/s (0: no limit)")
+        if 0 < self.link_mbit < MIN_LINK_MBIT:
+            raise CourseError(f"link_mbit must be 0 (no limit) or at least {MIN_LINK_MBIT:g} Mbit/s: below "
+                              "that the lab's own discovery traffic (about 3 Mbit/s) fills the link, "
+                              f"got {self.link_mbit:g}")
+        if self.transport != "lossy_link" and (self.loss_percent or self.link_mbit):
+            raise CourseError(f"loss_percent and link_mbit need transport='lossy_link' (a private network "
+                              f"link that can lose datagrams); transport={self.transport!r} cannot lose "
+                              "on purpose")
+        if self.transport == "lossy_link" and self.late_joiner:
+            raise CourseError("late_joiner=True runs only on 'shm' or 'udp': on the lossy link both ends "
+                              "live in a network namespace of their own, where nothing else tells the "
+                              "publisher that discovery is done")
 
     @property
     def count(self) -> int:
@@ -112,7 +141,11 @@ class ExperimentConfig:
                  f"{format_rate(self.rate_hz)} x {format_bytes(self.payload_bytes)}"]
         if self.processing_ms:
             parts.append(f"{self.processing_ms:g} ms/sample")
-        parts.append(self.transport)
+        if self.transport == "lossy_link":
+            limit = f" {self.link_mbit:g} Mbit/s" if self.link_mbit else ""
+            parts.append(f"link {self.loss_percent}% loss{limit}")
+        else:
+            parts.append(self.transport)
         if self.late_joiner:
             parts.append("late joiner")
         return ", ".join(parts)
@@ -167,6 +200,18 @@ PRESETS: dict[str, dict] = {
                              late_joiner=True, label="late joiner, volatile"),
             ExperimentConfig(durability="transient_local", depth=10, rate_hz=100, duration_s=0.2,
                              late_joiner=True, label="late joiner, transient_local"),
+        ],
+    },
+    "Wi-Fi link, 10 % loss": {
+        "what": "Both ends on a private network link that drops 10 % of the UDP datagrams, as a busy "
+                "Wi-Fi link can: 400 samples of 1 KiB at 400 Hz, KEEP_LAST 400 so that no queue "
+                "overflows. Best effort delivers about 90 % of them; reliable repairs every loss, and "
+                "the repairs show in its p99 latency.",
+        "configs": [
+            ExperimentConfig(reliability="best_effort", depth=400, rate_hz=400, duration_s=1.0,
+                             transport="lossy_link", loss_percent=10, label="best effort, 10 % loss"),
+            ExperimentConfig(reliability="reliable", depth=400, rate_hz=400, duration_s=1.0,
+                             transport="lossy_link", loss_percent=10, label="reliable, 10 % loss"),
         ],
     },
     "KEEP_ALL back-pressure": {

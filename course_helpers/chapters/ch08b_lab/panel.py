@@ -27,11 +27,13 @@ import ipywidgets as widgets
 
 from course_helpers.chapters.ch08b_lab.config import (
     MAX_DEPTH,
+    MAX_LOSS_PERCENT,
     MAX_PROCESSING_MS,
     PRESETS,
     ExperimentConfig,
     preset,
 )
+from course_helpers.chapters.ch08b_lab.link import link_unavailable_reason
 from course_helpers.chapters.ch08b_lab.plots import ResultsFigure, draw_still
 from course_helpers.chapters.ch08b_lab.results import ExperimentResult
 from course_helpers.chapters.ch08b_lab.run import run_experiment
@@ -102,8 +104,15 @@ class QoSLab:
         self.processing = w.FloatSlider(value=0.0, min=0.0, max=MAX_PROCESSING_MS, step=1.0,
                                         description="processing (ms)", readout_format=".0f",
                                         style=style, layout=wide)
-        self.transport = w.ToggleButtons(options=[("shared memory", "shm"), ("UDP", "udp")],
+        self.link_reason = link_unavailable_reason()  # None where the lossy link can be made
+        transports = [("shared memory", "shm"), ("UDP", "udp")]
+        self.transport = w.ToggleButtons(options=transports + ([] if self.link_reason else
+                                                               [("lossy link", "lossy_link")]),
                                          description="transport", style=style)
+        self.loss = w.IntSlider(value=0, min=0, max=MAX_LOSS_PERCENT, description="link loss (%)",
+                                style=style, layout=wide, disabled=True)
+        self.link_note = w.HTML("" if self.link_reason is None else
+                                f"<small>lossy link unavailable: {html.escape(self.link_reason)}</small>")
         self.duration = w.FloatSlider(value=1.0, min=0.1, max=10.0, step=0.05, description="duration (s)",
                                       readout_format=".2f", style=style, layout=wide)
         self.late_joiner = w.Checkbox(value=False, description="late joiner (subscribe after sending)",
@@ -126,8 +135,13 @@ class QoSLab:
         self.clear_button.on_click(self._guard(self._on_clear))
 
         self.preset_buttons = []
+        self._link_presets = set()  # tooltips of the presets that need the (unavailable) lossy link
         for name, entry in PRESETS.items():
-            button = w.Button(description=name, tooltip=entry["what"], layout=w.Layout(width="auto"))
+            needs_link = any(c.transport == "lossy_link" for c in entry["configs"])
+            button = w.Button(description=name, tooltip=entry["what"], layout=w.Layout(width="auto"),
+                              disabled=bool(needs_link and self.link_reason))
+            if button.disabled:
+                self._link_presets.add(entry["what"])
             button.on_click(self._guard(lambda _b, name=name: self._load_preset(name)))
             self.preset_buttons.append(button)
 
@@ -145,7 +159,7 @@ class QoSLab:
         qos_box = w.VBox([w.HTML("<b>QoS</b> (both ends)"), self.reliability, self.durability,
                           self.history, self.depth])
         load_box = w.VBox([w.HTML("<b>Load</b>"), self.rate, self.payload, self.processing,
-                           self.duration, self.transport, self.late_joiner])
+                           self.duration, self.transport, self.loss, self.link_note, self.late_joiner])
         self.widget = w.VBox([
             title,
             w.HBox([w.HTML("presets:"), *self.preset_buttons], layout=w.Layout(flex_flow="row wrap")),
@@ -158,7 +172,7 @@ class QoSLab:
 
     def _config_controls(self):
         return (self.reliability, self.durability, self.history, self.depth, self.rate, self.payload,
-                self.processing, self.transport, self.duration, self.late_joiner)
+                self.processing, self.transport, self.loss, self.duration, self.late_joiner)
 
     def _ipython_display_(self):
         from course_helpers.notebook.records import show_with_record
@@ -200,7 +214,8 @@ class QoSLab:
             history=self.history.value, depth=None if keep_all else int(self.depth.value),
             rate_hz=float(self.rate.value), payload_bytes=int(self.payload.value),
             processing_ms=float(self.processing.value), transport=self.transport.value,
-            duration_s=round(float(self.duration.value), 3), late_joiner=bool(self.late_joiner.value))
+            duration_s=round(float(self.duration.value), 3), late_joiner=bool(self.late_joiner.value),
+            loss_percent=int(self.loss.value) if self.transport.value == "lossy_link" else 0)
 
     def set_config(self, config: ExperimentConfig) -> None:
         """Put ``config`` into the panel's widgets."""
@@ -213,6 +228,7 @@ class QoSLab:
         self.payload.value = min(PAYLOADS, key=lambda b: abs(b - config.payload_bytes))
         self.processing.value = config.processing_ms
         self.transport.value = config.transport
+        self.loss.value = config.loss_percent
         self.duration.value = config.duration_s
         self.late_joiner.value = config.late_joiner
 
@@ -223,6 +239,7 @@ class QoSLab:
         """
         self.depth.disabled = self.history.value == "keep_all"
         self.depth.description = "depth (unused)" if self.depth.disabled else "depth"
+        self.loss.disabled = self.transport.value != "lossy_link"
         busy = self.running
         try:
             config = self.config()
@@ -371,7 +388,7 @@ class QoSLab:
             self._busy = False
             self.stop_button.disabled = True
             for button in self.preset_buttons:
-                button.disabled = False
+                button.disabled = button.tooltip in self._link_presets  # the lossy link is unavailable
             self._validate()
 
     def close(self) -> None:

@@ -17,6 +17,8 @@ from course_interfaces.msg import ExperimentSample
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Empty
 
 from course_helpers.core.channel import report
 from course_helpers.core.qos_dict import qos_from_dict
@@ -26,6 +28,9 @@ PUBLISHER_NODE = "qos_lab_publisher"
 MATCH_SETTLE_S = 0.2  # the publisher waits this long once matched, so both sides know each other
 PROGRESS_PERIOD_S = 0.1  # a progress report at most this often
 MAX_BURST = 500  # samples one timer tick may send (bounded work per callback)
+# The subscriber's "I have matched you" on the lossy link: kept for a late reader, repaired if lost
+READY_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class LabPublisher(Node):
@@ -40,6 +45,9 @@ class LabPublisher(Node):
         wait_for_subscriber: start once a subscription is matched.
         wait_for_node: start once this node (a full name) is in the graph (for a late joiner).
         deadline_s: stop sending after this many seconds, even if not everything was sent.
+        ready_topic: also wait for a message on this topic: the subscriber's word that it has
+            matched the publisher (on a lossy link either side may learn of the other first, and a
+            reader drops samples from a writer it does not know yet).
 
     Each sample carries a sequence number, the send time (ns, this machine's clock) and the
     filler. The timer ticks at the rate (at most every millisecond) and sends the samples
@@ -51,7 +59,7 @@ class LabPublisher(Node):
 
     def __init__(self, topic: str, qos: dict, rate_hz: float, payload_bytes: int, count: int,
                  wait_for_subscriber: bool = True, wait_for_node: str | None = None,
-                 deadline_s: float = 30.0):
+                 deadline_s: float = 30.0, ready_topic: str | None = None):
         super().__init__(PUBLISHER_NODE)
         self.rate_hz = float(rate_hz)  # samples per second
         self.count = int(count)
@@ -66,15 +74,24 @@ class LabPublisher(Node):
         self.wait_for_subscriber = wait_for_subscriber
         self.wait_for_node = wait_for_node
         self.ready_at = 0.0
+        self.peer_ready = ready_topic is None
+        if ready_topic is not None:
+            self.ready_subscription = self.create_subscription(Empty, ready_topic, self.on_peer_ready,
+                                                               READY_QOS)
         self.timer = self.create_timer(max(1.0 / self.rate_hz, 0.001), self.tick)  # period [s]
         self.timer.cancel()  # started by start()
         self.wait_timer = self.create_timer(0.01, self.check_ready)  # every 10 ms until ready
         self.ack_timer = self.create_timer(0.02, self.check_acked)
         self.ack_timer.cancel()  # started once everything is sent
 
+    def on_peer_ready(self, _msg) -> None:
+        self.peer_ready = True
+
     def check_ready(self) -> None:
         """Start sending once the other side is there (and has had MATCH_SETTLE_S to notice us)."""
         if self.wait_for_subscriber and self.publisher.get_subscription_count() == 0:
+            return
+        if not self.peer_ready:
             return
         if self.wait_for_node and self.wait_for_node not in {
                 ns.rstrip("/") + "/" + name for name, ns in self.get_node_names_and_namespaces()}:

@@ -125,10 +125,11 @@ def latency_percentiles(latency_ns) -> dict:
     return {"p50": float(p50), "p90": float(p90), "p99": float(p99), "max": float(values.max())}
 
 
-def loopback_bytes() -> int:
-    """Bytes received so far on this machine's loopback interface (from /proc/net/dev; 0 if unknown)."""
+def loopback_bytes(pid: int | str = "self") -> int:
+    """Bytes received so far on a loopback interface: this machine's, or (``pid``) that of the network
+    namespace process ``pid`` lives in (from /proc/PID/net/dev; 0 if unknown)."""
     try:
-        with open("/proc/net/dev", encoding="ascii") as handle:
+        with open(f"/proc/{pid}/net/dev", encoding="ascii") as handle:
             for line in handle:
                 name, _, data = line.partition(":")
                 if name.strip() == "lo":

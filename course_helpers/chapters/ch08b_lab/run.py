@@ -4,7 +4,9 @@
   real Fast DDS transport (shared memory or UDP loopback); it reports its progress and a
   final summary over the process channel (``child.last('progress')``, ``child.last('summary')``);
 * the subscriber (:class:`LabSubscriber`) runs in the kernel's runtime and counts what
-  arrives, the sequence gaps, the ``message_lost`` events and the latency;
+  arrives, the sequence gaps, the ``message_lost`` events and the latency; on the lossy link
+  (:mod:`.link`) both ends are child processes in a network namespace of their own, and the
+  subscriber (:class:`ReportingLabSubscriber`) reports its counts over its process channel;
 * the publisher counts ``publish()`` failures (``RCLError`` when a KEEP_ALL writer's
   history is full), so back-pressure is an error counted per run, not a crash.
 
@@ -20,6 +22,7 @@ from array import array
 from dataclasses import dataclass, field
 
 from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
+from course_helpers.chapters.ch08b_lab.link import SUBSCRIBER_LABEL, RemoteSubscriber, link_env, lossy_link
 from course_helpers.chapters.ch08b_lab.publisher import CHILD_LABEL, LabPublisher
 from course_helpers.chapters.ch08b_lab.results import (
     ExperimentResult,
@@ -27,7 +30,8 @@ from course_helpers.chapters.ch08b_lab.results import (
     latency_percentiles,
     loopback_bytes,
 )
-from course_helpers.chapters.ch08b_lab.subscriber import LabSubscriber
+from course_helpers.chapters.ch08b_lab.subscriber import LabSubscriber, ReportingLabSubscriber
+from course_helpers.core import processes
 from course_helpers.core.dds_config import udp_loopback_env
 from course_helpers.core.errors import CourseError
 from course_helpers.core.runtime import get_runtime
@@ -38,6 +42,9 @@ _IDLE_END_S = 0.5  # after the publisher is done, end when nothing arrived for t
 _RELIABLE_IDLE_END_S = 3.5  # a late joiner that got nothing yet: one Fast DDS heartbeat period (3 s) and more
 _LATE_JOIN_LISTEN_S = 1.0  # a matched late joiner listens this long after its last sample
 _DRAIN_LIMIT_S = 2.0  # after the publisher is done, wait at most this long (x3 for reliable)
+# Reliable on the lossy link: a repair waits for a heartbeat, and heartbeats and acknowledgements are
+# lost too; on a busy machine the last repairs can take seconds.
+_LINK_REPAIR_LIMIT_S = 15.0
 _START_POLL_S = 0.02  # while the publisher starts: how often to look for its first report
 
 _run_lock = threading.Lock()
@@ -78,7 +85,7 @@ def run_experiment(config: ExperimentConfig, progress=None, stop_event: threadin
 class _RunState:
     config: ExperimentConfig
     topic: str
-    sub: LabSubscriber | None = None
+    sub: LabSubscriber | RemoteSubscriber | None = None
     progress_line: dict | None = None  # the publisher's latest 'progress' report
     summary: dict | None = None  # its 'summary' report, once it has sent everything
     send_start: float | None = None  # when the publisher started sending (monotonic s)
@@ -103,52 +110,71 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
     # A fresh topic per run: nothing is left from older runs.
     run = _RunState(config, topic=f"/qos_lab/run_{os.getpid()}_{_run_counter}")
     wall_start = time.monotonic()
-    lo_start = loopback_bytes()
+    link = lossy_link(config.loss_percent, config.link_mbit) if config.transport == "lossy_link" else None
+    counter_pid = link.pid if link is not None else "self"  # whose loopback interface carries the samples
+    lo_start = loopback_bytes(counter_pid)
     child = None
     try:
-        if not config.late_joiner:  # subscribe first, so the publisher can wait until it is matched
-            run.add_subscriber(rt, joins_before_first_sample=True)
         # 'shm': the child inherits the kernel's set-up, and Fast DDS uses shared memory between
-        # processes of one machine; 'udp': its only transport is UDP on 127.0.0.1 (loopback_bytes shows it).
-        env = udp_loopback_env(rt.log_dir) if config.transport == "udp" else {}
-        child = rt.spawn(
-            CHILD_LABEL, LabPublisher,
-            params={"topic": run.topic, "qos": config.qos_dict(), "rate_hz": config.rate_hz,
-                    "payload_bytes": config.payload_bytes, "count": config.count,
-                    "wait_for_subscriber": not config.late_joiner,
-                    "wait_for_node": rt.graph.get_fully_qualified_name() if config.late_joiner else None,
-                    "deadline_s": _send_deadline_s(config)},
-            env=env)
-        if _wait_until_sending(child, stop_event, config):
+        # processes of one machine; 'udp' and the link: UDP on 127.0.0.1 only (loopback_bytes shows it).
+        env = {}
+        if config.transport == "udp":
+            env = udp_loopback_env(rt.log_dir)
+        elif link is not None:
+            env = link_env(rt.log_dir)
+        params = {"topic": run.topic, "qos": config.qos_dict(), "rate_hz": config.rate_hz,
+                  "payload_bytes": config.payload_bytes, "count": config.count,
+                  "wait_for_subscriber": not config.late_joiner,
+                  "wait_for_node": rt.graph.get_fully_qualified_name() if config.late_joiner else None,
+                  "deadline_s": _send_deadline_s(config)}
+        if link is not None:  # both ends on the link, the subscriber first; the publisher waits for its word
+            params["ready_topic"] = f"{run.topic}_ready"
+            sub_argv = processes.python_target_argv(ReportingLabSubscriber, {
+                "topic": run.topic, "qos": config.qos_dict(), "processing_ms": config.processing_ms,
+                "ready_topic": params["ready_topic"]})
+            run.sub = RemoteSubscriber(link.start(SUBSCRIBER_LABEL, sub_argv, env=env))
+            child = link.start(CHILD_LABEL, processes.python_target_argv(LabPublisher, params), env=env)
+        else:
+            if not config.late_joiner:  # subscribe first, so the publisher can wait until it is matched
+                run.add_subscriber(rt, joins_before_first_sample=True)
+            child = rt.spawn(CHILD_LABEL, LabPublisher, params=params, env=env)
+        if _wait_until_sending(child, stop_event, config, run.sub):
             run.send_start = child.channel.stamped("progress")[0][0]  # the child's clock is ours
             _follow(rt, run, child, progress, stop_event, period_s)
         else:
             run.stopped = True
     finally:
+        if isinstance(run.sub, RemoteSubscriber):
+            run.sub.child.request_stop()  # both ends of the link stop together
         if child is not None:
             child.stop(grace_s=0.5)
             rt.stop_child(CHILD_LABEL)
             if run.summary is None:  # stopped early: what the child had reported until then
                 run.progress_line, run.summary = child.last("progress"), child.last("summary")
-        if run.sub is not None:
+        if isinstance(run.sub, RemoteSubscriber):
+            run.sub.finish()
+        elif run.sub is not None:
             rt.remove(run.sub)
-    return _result(config, run, time.monotonic() - wall_start, loopback_bytes() - lo_start)
+    return _result(config, run, time.monotonic() - wall_start, loopback_bytes(counter_pid) - lo_start)
 
 
-def _wait_until_sending(child, stop_event: threading.Event, config: ExperimentConfig) -> bool:
+def _wait_until_sending(child, stop_event: threading.Event, config: ExperimentConfig, sub) -> bool:
     """Wait for the publisher's first 'progress' report (it has started sending): True.
 
     Returns False if ``stop_event`` is set first; raises CourseError if the process ends or the
     two sides do not connect within MATCH_TIMEOUT_S.
     """
-    poll_until(lambda: stop_event.is_set() or child.last("progress") is not None or not child.alive,
-               MATCH_TIMEOUT_S, period=_START_POLL_S)
+    remote = sub.child if isinstance(sub, RemoteSubscriber) else None
+    poll_until(lambda: (stop_event.is_set() or child.last("progress") is not None or not child.alive
+                        or (remote is not None and not remote.alive)), MATCH_TIMEOUT_S, period=_START_POLL_S)
     if stop_event.is_set():
         return False
     if child.last("progress") is not None:
         return True
     if not child.alive:
         raise child.failure("it started sending")
+    if remote is not None and not remote.alive:
+        raise remote.failure("the publisher started sending")
     raise CourseError(
         f"the publisher and subscriber did not connect within {MATCH_TIMEOUT_S:g} s (transport "
         f"{config.transport!r}). Publisher output:\n{child.output_tail()}")
@@ -220,6 +246,8 @@ def _drain_hopeless(run, now, config) -> bool:
     """After the publisher is done: stop waiting for queued samples after a while."""
     waited = now - run.summary_at
     limit = _DRAIN_LIMIT_S * (3 if config.reliability == "reliable" else 1)
+    if config.reliability == "reliable" and config.transport == "lossy_link":
+        limit = _LINK_REPAIR_LIMIT_S
     if waited > limit:
         return True
     if waited < 0.5 or len(run.timeline) < 2:
@@ -239,7 +267,7 @@ def _snapshot(sub, progress_line, summary, t) -> Snapshot:
         lat = latency_percentiles(array("q"))
     else:
         delivered, gaps, events = sub.delivered, sub.gaps, sub.lost_events
-        lat = latency_percentiles(sub.latency_ns)
+        lat = sub.latency()
         if summary is None and sub.last_seq:  # the child reports every 0.1 s; a sample that
             published = max(published, sub.last_seq)  # arrived with number N proves N were sent
     return Snapshot(t=round(t, 4), delivered=delivered, lost_by_sequence=gaps, lost_events=events,
@@ -259,7 +287,7 @@ def _result(config, run, wall_s, lo_bytes) -> ExperimentResult:
             in_flight = tail  # the run ended while samples could still arrive: not counted as lost
         else:
             gaps += tail  # nothing more arrived: the samples after the last one that did are lost
-    lat = latency_percentiles(sub.latency_ns if sub is not None else array("q"))
+    lat = sub.latency() if sub is not None else latency_percentiles(array("q"))
     events = sub.lost_events if sub is not None else 0
     delivered = sub.delivered if sub is not None else 0
     errors = int(report.get("publish_errors", 0))

@@ -1,4 +1,5 @@
-"""The QoS lab's subscriber, which runs in the kernel's runtime: ``rt.add(LabSubscriber, topic, qos)``.
+"""The QoS lab's subscriber: in the kernel's runtime (``rt.add(LabSubscriber, topic, qos)``), or in a
+child process on the lossy link (:class:`ReportingLabSubscriber`, which reports over the channel).
 
 It counts, in a cheap callback, what arrives, the gaps in the DDS
 ``publication_sequence_number`` of each sample, the DDS ``message_lost`` event, and the
@@ -13,7 +14,9 @@ from array import array
 from course_interfaces.msg import ExperimentSample
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+from std_msgs.msg import Empty
 
+from course_helpers.core.channel import report
 from course_helpers.core.qos_dict import qos_from_dict
 
 SUBSCRIBER_NODE = "qos_lab_subscriber"
@@ -65,3 +68,49 @@ class LabSubscriber(Node):
 
     def on_message_lost(self, info) -> None:
         self.lost_events += info.total_count_change
+
+    def latency(self) -> dict:
+        """p50/p90/p99/max latency so far in ms (None values before the first sample)."""
+        from course_helpers.chapters.ch08b_lab.results import latency_percentiles
+
+        return latency_percentiles(self.latency_ns)
+
+
+class ReportingLabSubscriber(LabSubscriber):
+    """A :class:`LabSubscriber` in a child process (the lossy link): it reports what it counted.
+
+    Every ``report_period_s`` it sends ``report('progress', ...)`` with :meth:`counts`, and one
+    last ``report('final', ...)`` when it is destroyed (the process was asked to stop), so the
+    kernel reads the exact totals over the process channel. Once its subscription has matched a
+    publisher it says so on ``ready_topic`` (the publisher waits for that before it sends).
+    """
+
+    def __init__(self, topic: str, qos: dict, processing_ms: float = 0.0, report_period_s: float = 0.1,
+                 ready_topic: str | None = None):
+        super().__init__(topic, qos, processing_ms, joins_before_first_sample=True)
+        self.ready_publisher = None
+        if ready_topic is not None:
+            from course_helpers.chapters.ch08b_lab.publisher import READY_QOS
+
+            self.ready_publisher = self.create_publisher(Empty, ready_topic, READY_QOS)
+        self.report_timer = self.create_timer(report_period_s, self.send_progress)  # period [s]
+
+    def counts(self) -> dict:
+        """delivered, gaps, lost_events, first_seq, last_seq, last_arrival (monotonic s), latency_ms."""
+        from course_helpers.chapters.ch08b_lab.results import latency_percentiles
+
+        return {"delivered": self.delivered, "gaps": self.gaps, "lost_events": self.lost_events,
+                "first_seq": self.first_seq, "last_seq": self.last_seq, "last_arrival": self.last_arrival,
+                "matched": self.subscription.get_publisher_count() > 0,
+                "latency_ms": latency_percentiles(self.latency_ns)}
+
+    def send_progress(self) -> None:
+        counts = self.counts()
+        if counts["matched"] and self.ready_publisher is not None:
+            self.ready_publisher.publish(Empty())  # once is enough (transient local, reliable)
+            self.ready_publisher = None
+        report("progress", **counts)
+
+    def destroy_node(self):
+        report("final", **self.counts())
+        return super().destroy_node()
