@@ -101,13 +101,29 @@ def test_separate_callback_groups_with_threads_keep_the_timer_regular(rt):
     assert fixed.tick_count > 40
 
 
-def test_timer_jitter_grows_with_a_cpu_heavy_callback(rt):
+def test_a_busy_callback_delays_a_timer_of_its_thread_only(rt):
     idle = measure_timer_jitter(period_s=0.01, duration_s=1.5)
-    loaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=8)
+    loaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20)
+    threaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20, executor="multi",
+                                    separate_groups=True)
     assert len(idle.intervals_s) > 100 and len(loaded.intervals_s) > 100
     assert abs(statistics_median(idle.intervals_s) - 0.01) < 0.002
-    # the 8 ms callback holds the only thread: some call waits for it (true on a loaded machine too)
-    assert loaded.longest_ms > 13.0, loaded.summary()
+    assert not idle.due_while_busy() and not idle.busy
+    # one thread: every call that fell due during the 20 ms callback waited for its end (on any machine)
+    blocked = loaded.due_while_busy()
+    assert len(blocked) >= 5 and all(call.waited_for_it for call in blocked), loaded.busy_summary()
+    # another thread and group: some such calls started while the busy callback still ran
+    assert any(not call.waited_for_it for call in threaded.due_while_busy()), threaded.busy_summary()
+
+
+def test_due_while_busy_sorts_calls_by_the_busy_runs():
+    from course_helpers.chapters.ch02_executors import JitterResult
+
+    ms = 1_000_000
+    result = JitterResult("made up", 0.01, calls=[(0, 1 * ms), (10 * ms, 18 * ms), (20 * ms, 23 * ms)],
+                          busy=[(8 * ms, 16 * ms), (19 * ms, 25 * ms)])
+    found = result.due_while_busy()
+    assert [(c.wait_ms, c.left_ms, c.waited_for_it) for c in found] == [(8.0, 6.0, True), (3.0, 5.0, False)]
 
 
 def statistics_median(values):
