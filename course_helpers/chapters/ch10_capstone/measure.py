@@ -31,11 +31,19 @@ class Delivery:
     missed: int
     mean_age_ms: float
     callback_ms: list[float] = field(default_factory=list)  # a node's own time per frame [ms], if asked
+    span_s: float = float("nan")  # from the first to the last stamp received [s]
 
     @property
     def mean_callback_ms(self) -> float:
         """The mean of :attr:`callback_ms` [ms] (nan when none were collected)."""
         return sum(self.callback_ms) / len(self.callback_ms) if self.callback_ms else float("nan")
+
+    @property
+    def frames_per_message(self) -> float:
+        """Source frames per message received, from the stamps' span (1.0: every frame; nan: < 2).
+
+        Unlike the rate, it does not depend on where the window's edges fall between two messages."""
+        return self.span_s * self.expected_hz / (self.received - 1) if self.received > 1 else float("nan")
 
     @property
     def delivered_hz(self) -> float:
@@ -102,7 +110,8 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
         if timing is not None:
             rt.call_in_executor(rt.graph.destroy_subscription, timing)
     return Delivery(topic, expected_hz, elapsed, len(got), count_missed(got, expected_hz, elapsed),
-                    1000.0 * sum(age) / len(age) if age else float("nan"), took)
+                    1000.0 * sum(age) / len(age) if age else float("nan"), took,
+                    got[-1] - got[0] if got else float("nan"))
 
 
 def count_missed(stamps: list[float], expected_hz: float, seconds: float) -> int:

@@ -124,7 +124,7 @@ class Navigator(RobotNode):
             self.finish("succeeded")
             return
         cruise = min(drive.speed if drive.speed > 0 else self.max_speed, self.max_speed)
-        speed = max(0.05, min(cruise, 2.0 * remaining))  # slow down over the last metre
+        speed = max(0.05, min(cruise, 3.0 * remaining))  # near the goal: 3 m/s per metre left
         self.cmd_publisher.publish(Twist(linear=Vector3(x=speed * dx / remaining, y=speed * dy / remaining)))
         drive.goal_handle.publish_feedback(Navigate.Feedback(
             distance_remaining=remaining,
