@@ -136,9 +136,11 @@ def _run(report: CheckReport, rt, monitor_class, added: list) -> None:
     missions = [runner.start(f"crate-{i + 2}", shelf)
                 for i, (runner, shelf) in enumerate(zip(runners, ("A1", "B1"), strict=True))] if both else []
     delivered = [_ended(m) for m in missions]
+    undelivered = "".join(f"; {robot.namespace[1:]}: {m.state}"
+                          for robot, m, ok in zip(robots, missions, delivered, strict=False) if not ok)
     if not report.add("the fleet's release lets every robot it stopped drive again",
                       both and all(delivered),
-                      f"missions delivered: {sum(map(bool, delivered))} of 2" if both else
+                      f"missions delivered: {sum(map(bool, delivered))} of 2{undelivered}" if both else
                       f"robot4's navigator hears '{heard(four)}', robot5's '{heard(five)}' "
                       f"{CHANGE_S:g} s after the fleet's release",
                       hint="The fleet manager publishes on the same topic when it releases the fleet stop."):

@@ -47,9 +47,9 @@ def start_robot(rt, name: str = "robot1", camera: bool = True, camera_hz: float 
     ``camera_hz`` the camera's rate [Hz], ``safety_monitor`` False starts the robot without
     one (add your own: ``rt.add(MyMonitor, '/robot1')``; until it publishes a released e-stop,
     the robot stays stopped).
-    Returns: a :class:`Robot` once the navigator hears odometry and discovery shows every endpoint
-    of the robot (its topics and, with its safety monitor, the ``engage`` service), and with its
-    safety monitor, once the navigator and the gripper hear the released e-stop. Re-running
+    Returns: a :class:`Robot` once the navigator and the gripper hear odometry and discovery shows
+    every endpoint of the robot (its topics and, with its safety monitor, the ``engage`` service),
+    and with its safety monitor, once both hear the released e-stop. Re-running
     replaces the child process and the kernel's nodes of that robot.
     """
     return start_robots(rt, [name], camera=camera, camera_hz=camera_hz, safety_monitor=safety_monitor)[0]
@@ -75,13 +75,13 @@ def _join(rt, namespace: str, drivers: ChildProcess, camera: bool, safety_monito
     rt.wait_for_child_node(drivers, full_name(namespace, "lidar"), 20.0)
     navigator = rt.add(Navigator, namespace, console=False)
     gripper = rt.add(Gripper, namespace, console=False)
+    # Both read odometry from the drivers' process: on a busy machine a lost discovery message can
+    # keep one of them unmatched for seconds, and a gripper that never heard odometry cannot pick.
+    rt.wait_until(lambda: navigator.pose is not None and gripper.pose is not None, 10.0,
+                  f"{namespace}/navigator and {namespace}/gripper to hear odometry")
     if safety_monitor:
-        rt.wait_until(lambda: navigator.pose is not None and not navigator.estop_engaged
-                      and not gripper.estop_engaged, 10.0,
-                      f"{namespace}/navigator to hear odometry and both it and the gripper the released "
-                      "e-stop")
-    else:
-        rt.wait_until(lambda: navigator.pose is not None, 10.0, f"{namespace}/navigator to hear odometry")
+        rt.wait_until(lambda: not navigator.estop_engaged and not gripper.estop_engaged, 10.0,
+                      f"{namespace}/navigator and {namespace}/gripper to hear the released e-stop")
     # Wait until discovery has reported every endpoint of the robot, so that the graph,
     # the QoS table and the tools show the whole robot from the first look.
     publishers = {"odom": 1, "scan": 1, "cmd_vel": 1}
