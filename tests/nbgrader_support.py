@@ -1,8 +1,9 @@
-"""What the two nbgrader test files share: chapter 04 released into a temporary course, the
-misbehaving answers, handing in and grading with ``tools/assignments.py``.
+"""What the nbgrader test files share: a chapter (04 unless told otherwise) released into a
+temporary course, the misbehaving answers, handing in and grading with ``tools/assignments.py``.
 
-The students are split over ``test_nbgrader.py`` and ``test_nbgrader_misbehaving.py`` so that two
-parallel workers grade them at the same time; each file releases its own course.
+The students of chapter 04 are split over ``test_nbgrader.py`` and ``test_nbgrader_misbehaving.py`` so
+that two parallel workers grade them at the same time; each file releases its own course.
+``test_nbgrader_ch10.py`` releases and grades chapter 10.
 """
 
 from __future__ import annotations
@@ -78,10 +79,10 @@ def solved(source_cell: dict) -> str:
     return "\n".join(line for line in lines if line.strip() not in (BEGIN, END)) + "\n"
 
 
-def release_course(tmp_path_factory) -> tuple[Path, str]:
-    """Chapter 04 released into a new course directory; the directory and the tool's output."""
+def release_course(tmp_path_factory, chapter: str = "04") -> tuple[Path, str]:
+    """A chapter (04) released into a new course directory; the directory and the tool's output."""
     course_dir = tmp_path_factory.mktemp("course")
-    output = tool("--course-dir", str(course_dir), "release", "04", timeout=600)
+    output = tool("--course-dir", str(course_dir), "release", chapter, timeout=600)
     return course_dir, output
 
 
@@ -90,9 +91,10 @@ def solutions(course_dir: Path) -> dict[str, str]:
     return {EX1: solved(cells[EX1]), EX2: solved(cells[EX2])}
 
 
-def hand_in(course_dir: Path, students: dict[str, dict[str, str]], submissions: Path) -> Path:
+def hand_in(course_dir: Path, students: dict[str, dict[str, str]], submissions: Path,
+            chapter: str = CHAPTER) -> Path:
     """Write each student's notebook: the release with their answers in the exercise cells."""
-    release = json.loads((course_dir / "release" / CHAPTER / f"{CHAPTER}.ipynb").read_text())
+    release = json.loads((course_dir / "release" / chapter / f"{chapter}.ipynb").read_text())
     for student, answers in students.items():
         nb = json.loads(json.dumps(release))
         for grade_id, cell in grade_cells(nb).items():
@@ -101,15 +103,16 @@ def hand_in(course_dir: Path, students: dict[str, dict[str, str]], submissions: 
         if EXTRA in answers:
             nb["cells"].append({"cell_type": "code", "execution_count": None, "id": "student-extra",
                                 "metadata": {}, "outputs": [], "source": answers[EXTRA]})
-        folder = submissions / student / CHAPTER
+        folder = submissions / student / chapter
         folder.mkdir(parents=True)
-        (folder / f"{CHAPTER}.ipynb").write_text(json.dumps(nb, indent=1))
+        (folder / f"{chapter}.ipynb").write_text(json.dumps(nb, indent=1))
     return submissions
 
 
-def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int):
-    output = tool("--course-dir", str(course_dir), "grade", str(submissions), "--assignment", CHAPTER,
-                   "--timeout", str(CELL_TIMEOUT_S), "--wall-clock", str(wall_clock), "--out", str(out),
+def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int, chapter: str = CHAPTER,
+          cell_timeout: int = CELL_TIMEOUT_S):
+    output = tool("--course-dir", str(course_dir), "grade", str(submissions), "--assignment", chapter,
+                   "--timeout", str(cell_timeout), "--wall-clock", str(wall_clock), "--out", str(out),
                    timeout=1000)
     with open(out / "grades.csv", newline="") as f:
         rows = {row["student"]: row for row in csv.DictReader(f)}
@@ -117,12 +120,14 @@ def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int):
     return rows, log, output
 
 
-def grade_students(course_dir: Path, students: dict[str, dict[str, str]], tmp_path_factory):
+def grade_students(course_dir: Path, students: dict[str, dict[str, str]], tmp_path_factory,
+                   chapter: str = CHAPTER, cell_timeout: int = CELL_TIMEOUT_S):
     """Hand in these students' answers and grade them (10 min wall clock each):
     (rows, log, output folder, the tool's output)."""
-    submissions = hand_in(course_dir, students, tmp_path_factory.mktemp("submissions"))
+    submissions = hand_in(course_dir, students, tmp_path_factory.mktemp("submissions"), chapter)
     out = course_dir / "graded"
-    rows, log, output = grade(course_dir, submissions, out, wall_clock=600)
+    rows, log, output = grade(course_dir, submissions, out, wall_clock=600, chapter=chapter,
+                              cell_timeout=cell_timeout)
     return rows, log, out, output
 
 
