@@ -51,3 +51,16 @@ def report_participant_setup(seconds: float = 60.0) -> None:
     profile = os.path.basename(os.environ.get(PROFILE_ENV, ""))
     report("setup", range=os.environ.get(RANGE_ENV), profile=profile, udp=udp_addresses(os.getpid()))
     time.sleep(seconds)
+
+
+def start_program_tree() -> None:
+    """A procedure that starts a program with two children through the process layer, then waits.
+
+    It is stopped by a signal (SIGTERM from its kernel, or the kernel's death).
+    """
+    from course_helpers.core import processes
+
+    processes.start("grandchild-program",
+                    processes.program_argv("sh", "-c", "sleep 300 & sleep 300 & wait"),
+                    group="test", channel=False)
+    time.sleep(300)
