@@ -17,8 +17,7 @@ eProsima's discovery server (chapter 07) and launch groups (chapter 06) all go t
 Children start in their own session, so the notebook's interrupt button never reaches
 them; their output (stdout and stderr) goes to a log file. Every signal goes to the child's
 whole process group (stop, kill, a timeout, the reaping at exit), so a program's own children
-(compilers under a build step, nodes under a shell) stop with it. A child is reaped only after
-its group has been signalled: until then its PID, which is the group's ID, cannot be reused.
+(compilers under a build step, nodes under a shell) stop with it (:mod:`.process_groups`).
 """
 
 from __future__ import annotations
@@ -28,7 +27,6 @@ import codecs
 import json
 import os
 import queue
-import select
 import selectors
 import shutil
 import signal
@@ -43,6 +41,7 @@ from concurrent.futures import Future
 from course_helpers.core.channel import CHANNEL_ENV, ChannelReader
 from course_helpers.core.dds_config import environment_snapshot
 from course_helpers.core.errors import CourseError
+from course_helpers.core.process_groups import ProcessGroup
 from course_helpers.core.supervisor import PARENT_ENV
 from course_helpers.core.waiting import poll_until
 
@@ -56,65 +55,6 @@ OUTPUT_TAIL_CHARS = 2000
 _lock = threading.RLock()
 _registry: dict[tuple[str, str], ChildProcess] = {}
 _log_dir: list[str] = []
-
-
-class _ExitWatch:
-    """A child's exit, seen without reaping it, and its process group signalled safely.
-
-    The child is a group leader (a session of its own), so its PID is the group's ID. Its exit is
-    awaited on a pidfd (an event, no polling) and read with ``waitid(WNOWAIT)``: until
-    :meth:`finish` reaps it, the PID stays taken, so a signal to the group can never reach a new,
-    unrelated process that happened to get the same number.
-    """
-
-    def __init__(self, process: subprocess.Popen):
-        self.process = process
-        try:
-            self._pidfd: int | None = os.pidfd_open(process.pid)
-        except (AttributeError, OSError):  # Linux before 5.3: exits are polled instead
-            self._pidfd = None
-
-    def code(self) -> int | None:
-        """The exit code (negative: the signal that ended it), or None while it runs."""
-        if self.process.returncode is not None:
-            return self.process.returncode
-        try:
-            info = os.waitid(os.P_PID, self.process.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
-        except ChildProcessError:  # reaped by someone else: let Popen say how it ended
-            return self.process.poll()
-        if info is None:
-            return None
-        return info.si_status if info.si_code == os.CLD_EXITED else -info.si_status
-
-    def wait(self, timeout: float) -> bool:
-        """Wait up to ``timeout`` seconds for the exit (without reaping); True if it has exited."""
-        if self.code() is not None:
-            return True
-        if self._pidfd is None:
-            return poll_until(lambda: self.code() is not None, timeout)
-        poller = select.poll()
-        poller.register(self._pidfd, select.POLLIN)
-        poller.poll(None if timeout == float("inf") else max(0, int(timeout * 1000) + 1))
-        return self.code() is not None
-
-    def signal_group(self, sig: int) -> None:
-        """Send ``sig`` to the whole process group (nothing once the child has been reaped)."""
-        if self.process.returncode is not None:
-            return
-        try:
-            os.killpg(self.process.pid, sig)
-        except (ProcessLookupError, PermissionError):
-            pass
-
-    def finish(self) -> None:
-        """Once the child has exited: kill what is left of its group, then reap the child."""
-        if self.process.returncode is not None or self.code() is None:
-            return
-        self.signal_group(signal.SIGKILL)
-        self.process.wait()
-        if self._pidfd is not None:
-            os.close(self._pidfd)
-            self._pidfd = None
 
 
 class ChildProcess:
@@ -133,7 +73,7 @@ class ChildProcess:
         self.target = target
         self.started = time.monotonic()
         self.stop_requested = False
-        self._exit = _ExitWatch(process)
+        self._exit = ProcessGroup(process)
 
     # ------------------------------------------------------------------ state
     @property
@@ -411,7 +351,7 @@ def run(argv: list[str], *, env: dict | None = None, cwd: str | None = None, tim
         process = _launcher.run(fork)
     except OSError as exc:
         raise CourseError(f"could not run {argv[0]}: {exc}") from None
-    watch = _ExitWatch(process)
+    watch = ProcessGroup(process)
     lines: list[str] = []
 
     def emit(line: str) -> None:
