@@ -70,6 +70,10 @@ STARTER_NAMES = re.compile(
 )
 LOOP_STARTERS = {"subprocess_exec", "subprocess_shell"}  # asyncio event-loop methods, on any object
 
+# --- scratch files: private to the process (processes.log_dir(), tempfile.mkdtemp/mkstemp)
+SHARED_TEMP_CALLS = {"tempfile.gettempdir", "tempfile.gettempdirb", "tempfile.mktemp"}
+SHARED_TEMP_PREFIXES = ("/tmp", "/var/tmp")  # (/dev/shm is Fast DDS's: the package only reads it)
+
 
 @dataclass
 class Module:
@@ -290,6 +294,22 @@ def process_starts_outside_the_process_layer(modules: list[Module]) -> list[str]
     return sorted(set(found))
 
 
+def predictable_shared_paths(modules: list[Module]) -> list[str]:
+    """Paths in a folder every user shares, by a name another user can guess and create first."""
+    found = []
+    for module in modules:
+        tree = module.tree
+        aliases = _aliases(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Attribute, ast.Name)) and isinstance(node.ctx, ast.Load):
+                if _dotted(node, aliases) in SHARED_TEMP_CALLS:
+                    found.append(f"{module.where}:{node.lineno} uses {_dotted(node, aliases)}")
+            elif isinstance(node, ast.Constant) and isinstance(node.value, str) and any(
+                    node.value == p or node.value.startswith(p + "/") for p in SHARED_TEMP_PREFIXES):
+                found.append(f"{module.where}:{node.lineno} names {node.value}")
+    return sorted(set(found))
+
+
 def modules_too_long(modules: list[Module]) -> list[str]:
     return [f"{module.where} has {n} lines; split it by job (the limit is {MAX_MODULE_LINES})"
             for module in modules if (n := len(module.path.read_text().splitlines())) > MAX_MODULE_LINES]
@@ -316,6 +336,12 @@ def test_core_needs_only_the_standard_library_ros_and_its_named_extras():
 def test_only_the_process_layer_starts_processes():
     starters = process_starts_outside_the_process_layer(_modules())
     assert not starters, "start child processes with course_helpers.core.processes:\n" + "\n".join(starters)
+
+
+def test_scratch_files_are_private_to_the_process():
+    shared = predictable_shared_paths(_modules())
+    assert not shared, ("write scratch files into processes.log_dir() or a tempfile.mkdtemp() folder, never "
+                        "by a name in a shared folder:\n" + "\n".join(shared))
 
 
 @pytest.mark.parametrize("module", _modules(), ids=lambda m: str(m.path.relative_to(PACKAGE)))
@@ -375,6 +401,12 @@ BAD_EXAMPLES = {
         "core/m.py": "from concurrent.futures import ProcessPoolExecutor\n",
         "core/n.py": "import os\nos.forkpty()\n",
         "core/o.py": "import os\nos.popen('ls')\n",
+    },
+    predictable_shared_paths: {
+        "chapters/ch01_architecture.py": ("import os, tempfile\n"
+                                          "path = os.path.join(tempfile.gettempdir(), 'lease.xml')\n"),
+        "core/fixed.py": "PATH = '/tmp/ros2-course-domains'\n",
+        "core/racy.py": "from tempfile import mktemp\nname = mktemp()\n",
     },
     modules_too_long: {
         "core/long.py": "x = 1\n" * (MAX_MODULE_LINES + 1),

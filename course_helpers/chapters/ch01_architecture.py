@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -23,6 +22,7 @@ from dataclasses import dataclass, field
 from rclpy.node import Node
 from std_msgs.msg import String
 
+from course_helpers.core import dds_config, processes
 from course_helpers.core.errors import CourseError
 from course_helpers.core.versions import package_version
 from course_helpers.nodes.chatter import Talker
@@ -243,22 +243,6 @@ def draw_layer_stack(layers: list[Layer] | None = None, transports: Transports |
 
 
 # ---------------------------------------------------------------------- no master
-_LEASE_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <participant profile_name="course_short_lease" is_default_profile="true">
-    <rtps>
-      <builtin>
-        <discovery_config>
-          <leaseDuration><sec>{sec}</sec><nanosec>{nsec}</nanosec></leaseDuration>
-          <leaseAnnouncement><sec>{asec}</sec><nanosec>{ansec}</nanosec></leaseAnnouncement>
-        </discovery_config>
-      </builtin>
-    </rtps>
-  </participant>
-</profiles>
-"""
-
-
 def short_lease_env(lease_s: float = 2.0) -> dict[str, str]:
     """Environment for ``rt.spawn(..., env=...)``: the child's participant announces a short lease.
 
@@ -266,24 +250,11 @@ def short_lease_env(lease_s: float = 2.0) -> dict[str, str]:
 
     Peers drop a participant that stays silent longer than its lease. Fast DDS's default is
     20 s; a 2 s lease lets the notebook show a crashed node leaving the graph without a long
-    wait. The lease is set in a Fast DDS XML profile (``FASTRTPS_DEFAULT_PROFILES_FILE``);
-    the participant announces itself four times per lease.
+    wait. The lease is set in the course's Fast DDS XML profile (``FASTRTPS_DEFAULT_PROFILES_FILE``,
+    :func:`course_helpers.core.dds_config.short_lease_env`), written into this kernel's private
+    folder.
     """
-    if not 0.5 <= lease_s <= 60:
-        raise CourseError(f"lease_s must be 0.5..60 seconds, got {lease_s!r}")
-    announce = lease_s / 4
-
-    def split(seconds):
-        whole = int(seconds)
-        return whole, int(round((seconds - whole) * 1e9))
-
-    (sec, nsec), (asec, ansec) = split(lease_s), split(announce)
-    path = os.path.join(tempfile.gettempdir(), f"ros2-course-lease-{os.getuid()}-{sec}.{nsec:09d}.xml")
-    partial = f"{path}.{os.getpid()}"
-    with open(partial, "w", encoding="utf-8") as handle:
-        handle.write(_LEASE_PROFILE.format(sec=sec, nsec=nsec, asec=asec, ansec=ansec))
-    os.replace(partial, path)  # atomic: a child never reads a half-written profile
-    return {"FASTRTPS_DEFAULT_PROFILES_FILE": path}
+    return dds_config.short_lease_env(processes.log_dir(), lease_s)
 
 
 class NamedTalker(Talker):
