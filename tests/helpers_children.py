@@ -15,6 +15,12 @@ def count_then_report(count: int = 3) -> None:
     report("done", total=count)
 
 
+def report_after(delay_s: float = 2.0) -> None:
+    """A procedure that reports 'late' after ``delay_s`` seconds, then exits."""
+    time.sleep(delay_s)
+    report("late", after_s=delay_s)
+
+
 def fail_after_report() -> None:
     """A procedure that fails: the child reports the error and exits 1."""
     raise RuntimeError("measured nothing")

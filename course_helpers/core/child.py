@@ -80,7 +80,8 @@ def _watch_parent(stop: _StopSignal) -> None:
     """
 
     def watch() -> None:
-        poll_until(lambda: stop.event.is_set() or orphaned(), float("inf"), period=PARENT_CHECK_S)
+        poll_until(lambda: stop.event.is_set() or orphaned(), float("inf"), period=PARENT_CHECK_S,
+                   wake_on=None)  # not woken by the node's callbacks
         stop.event.set()
         time.sleep(CLEANUP_S)  # the main thread exits long before this, unless its clean-up hangs
         end_descendants(0)

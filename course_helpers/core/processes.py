@@ -43,7 +43,7 @@ from course_helpers.core.dds_config import environment_snapshot
 from course_helpers.core.errors import CourseError
 from course_helpers.core.process_groups import ProcessGroup
 from course_helpers.core.supervisor import PARENT_ENV
-from course_helpers.core.waiting import poll_until
+from course_helpers.core.waiting import UNNOTIFIED_PERIOD_S, poll_until
 
 STOP_GRACE_S = 5.0  # s; SIGTERM, then SIGKILL after this long (a clean stop takes about 0.4 s, and
 # seconds on a loaded machine: a process killed before its goodbye stays in the graph for its lease)
@@ -51,6 +51,7 @@ KILL_WAIT_S = 5.0  # s; how long a SIGKILLed process may take to be gone
 DRAIN_S = 1.0  # s; after a timeout, how long `run` still reads output (a process that left the group
 # may hold the pipe open for ever)
 OUTPUT_TAIL_CHARS = 2000
+CHANNEL_PERIOD_S = 1.0  # s; a wait for a report still looks this often (the channel's events wake it)
 
 _lock = threading.RLock()
 _registry: dict[tuple[str, str], ChildProcess] = {}
@@ -126,7 +127,10 @@ class ChildProcess:
         from course_helpers.core.errors import WaitTimeout
 
         what = what or f"its {tag!r} report"
-        poll_until(lambda: self.last(tag) is not None or not self.alive, timeout)
+        # a report, and the end of a child with a channel, wake the wait; a child without one is
+        # looked at every UNNOTIFIED_PERIOD_S
+        period = CHANNEL_PERIOD_S if self.channel is not None else UNNOTIFIED_PERIOD_S
+        poll_until(lambda: self.last(tag) is not None or not self.alive, timeout, period)
         found = self.last(tag)
         if found is None and self.channel is not None and not self.alive:
             self.channel.close()  # the pipe may still hold the last reports
