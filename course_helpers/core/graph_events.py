@@ -31,14 +31,15 @@ from course_helpers.core.waiting import changes
 RCL_RET_OK = 0
 RCL_RET_TIMEOUT = 2
 WAIT_FOREVER = -1  # ns: rcl_wait blocks until a guard condition triggers
+ENTITY_KINDS = ("subscriptions", "guard_conditions", "timers", "clients", "services", "events")
 
 
 class WaitSet(ctypes.Structure):
     """``rcl_wait_set_t`` (rcl/wait.h, Jazzy): six arrays of entity pointers with their sizes, and impl."""
 
-    _fields_ = [(f"{kind}{suffix}", ctypes.c_void_p if suffix == "" else ctypes.c_size_t)
-                for kind in ("subscriptions", "guard_conditions", "timers", "clients", "services", "events")
-                for suffix in ("", "_size")] + [("impl", ctypes.c_void_p)]
+    _fields_ = [field for kind in ENTITY_KINDS
+                for field in ((kind, ctypes.c_void_p), (f"size_of_{kind}", ctypes.c_size_t))]
+    _fields_ += [("impl", ctypes.c_void_p)]
 
 
 class Allocator(ctypes.Structure):
