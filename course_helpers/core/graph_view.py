@@ -4,8 +4,9 @@ Every graph query of the course (``rt.graph_nodes()``, a child's node settling, 
 goes through the runtime's hidden node ``_course_runtime``. A query costs rcl calls per node (its
 publishers, subscriptions, services and clients), and waits ask again and again. A
 :class:`~course_helpers.core.graph_events.GraphWatcher` counts the graph's changes, so an answer is
-computed once per change and a wait sleeps until the next one. Without the watcher (rcl could not
-be loaded), every query asks rcl again and graph waits look every
+computed once per change and a wait sleeps until the next one. An answer is also kept no longer
+than :data:`WATCHED_PERIOD_S`, so that a change rmw did not signal could cost no more than that.
+Without the watcher (rcl could not be loaded), every query asks rcl again and graph waits look every
 :data:`~course_helpers.core.waiting.UNNOTIFIED_PERIOD_S`.
 """
 
@@ -25,7 +26,8 @@ INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's
 # A new participant may learn of an older one only at its next periodic announcement (every 3 s
 # outside the course): by this long after the start, the graph shows what was already running.
 GRAPH_SETTLE_S = DEFAULT_ANNOUNCEMENT_S + 0.3
-WATCHED_PERIOD_S = 1.0  # s; with a watcher, a graph wait still looks this often (a lost event costs no more)
+WATCHED_PERIOD_S = 1.0  # s; with a watcher, a graph wait still looks this often, and answers are
+# kept no longer (a lost event costs no more)
 
 
 class GraphView:
@@ -50,19 +52,21 @@ class GraphView:
         return WATCHED_PERIOD_S if self._watcher is not None and self._watcher.alive else UNNOTIFIED_PERIOD_S
 
     def _cached(self, key, compute):
-        """``compute()``, kept until the graph changes (not kept without a watcher)."""
+        """``compute()``, kept until the graph changes or for :data:`WATCHED_PERIOD_S` (not kept
+        without a watcher)."""
         version = self._watcher.version if self._watcher is not None and self._watcher.alive else None
         if version is None:
             return compute()
+        now = time.monotonic()
         with self._lock:
             if self._cached_version != version:
                 self._cache, self._cached_version = {}, version
-            if key in self._cache:
-                return self._cache[key]
+            if key in self._cache and now - self._cache[key][0] < WATCHED_PERIOD_S:
+                return self._cache[key][1]
         value = compute()  # a change meanwhile raises the version: the next call computes again
         with self._lock:
             if self._cached_version == version:
-                self._cache[key] = value
+                self._cache[key] = (now, value)
         return value
 
     def settle(self) -> None:
