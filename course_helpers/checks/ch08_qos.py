@@ -267,6 +267,14 @@ def _endpoints(entities, topic: str, msg_type) -> tuple[list, str]:
     return found, ""
 
 
+def _endpoint_criterion(report, name: str, entities, topic: str, msg_type, hint: str) -> list:
+    """Add the criterion ``name``: ``entities`` (a node's publishers or subscriptions) include one on
+    ``topic`` of ``msg_type``. Returns the ones found, or [] if the criterion failed."""
+    found, problem = _endpoints(entities, topic, msg_type)
+    report.add(name, not problem, problem, hint=hint)
+    return found
+
+
 def _run_quiet_spell(rt, label: str, target, params: dict, after_s: float) -> dict[str, float] | str:
     """Spawn ``target`` (a node with a QuietSpell), wait until it spoke again plus ``after_s``.
 
@@ -303,9 +311,10 @@ def check_deadline_watchdog(node_class, rt=None) -> CheckReport:
     with student_node(report, rt, node_class, "watchdog_probe") as (node, probe):
         if node is None:
             return report
-        subs, problem = _endpoints(node.subscriptions, "/odom", Odometry)
-        if not report.add("it subscribes to /odom (nav_msgs/msg/Odometry)", not problem, problem,
-                          hint="self.create_subscription(Odometry, 'odom', self.on_odom, qos)"):
+        subs = _endpoint_criterion(report, "it subscribes to /odom (nav_msgs/msg/Odometry)",
+                                   node.subscriptions, "/odom", Odometry,
+                                   "self.create_subscription(Odometry, 'odom', self.on_odom, qos)")
+        if not subs:
             return report
         deadline_s = duration_seconds(subs[0].qos_profile.deadline)
         low, high = WATCHDOG_DEADLINE_S
@@ -320,9 +329,10 @@ def check_deadline_watchdog(node_class, rt=None) -> CheckReport:
                           not wrong, wrong,
                           hint="A subscription cannot request a shorter deadline than the publisher offers."):
             return report
-        _pubs, problem = _endpoints(node.publishers, "/alarm", String)
-        if not report.add("it publishes on /alarm (std_msgs/msg/String)", not problem, problem,
-                          hint="self.alarm = self.create_publisher(String, 'alarm', 10)"):
+        pubs = _endpoint_criterion(report, "it publishes on /alarm (std_msgs/msg/String)",
+                                   node.publishers, "/alarm", String,
+                                   "self.alarm = self.create_publisher(String, 'alarm', 10)")
+        if not pubs:
             return report
         alarms: list[float] = []  # time.monotonic() of each alarm
         probe.create_subscription(String, "/alarm", lambda _m: alarms.append(time.monotonic()),
@@ -385,9 +395,11 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
     with student_node(report, rt, node_class, "heartbeat_probe") as (node, probe):
         if node is None:
             return
-        pubs, problem = _endpoints(node.publishers, "/heartbeat", String)
-        if not report.add("heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)", not problem,
-                          problem, hint="self.publisher = self.create_publisher(String, 'heartbeat', qos)"):
+        pubs = _endpoint_criterion(report,
+                                   "heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)",
+                                   node.publishers, "/heartbeat", String,
+                                   "self.publisher = self.create_publisher(String, 'heartbeat', qos)")
+        if not pubs:
             return
         offered = pubs[0].qos_profile
         lease = duration_seconds(offered.liveliness_lease_duration)
@@ -399,10 +411,11 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
                           hint="liveliness=LivelinessPolicy.MANUAL_BY_TOPIC, "
                                "liveliness_lease_duration=Duration(seconds=0.5)"):
             return
-        _subs, problem = _endpoints(node.subscriptions, "/heartbeat/enable", Bool)
-        if not report.add("heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)", not problem,
-                          problem,
-                          hint="self.create_subscription(Bool, 'heartbeat/enable', self.on_enable, 10)"):
+        subs = _endpoint_criterion(report,
+                                   "heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
+                                   node.subscriptions, "/heartbeat/enable", Bool,
+                                   "self.create_subscription(Bool, 'heartbeat/enable', self.on_enable, 10)")
+        if not subs:
             return
         seen = {"alive": 0, "lost": 0}  # writers alive now; times one ran out of its lease
 
@@ -443,19 +456,20 @@ def _check_monitor_node(rt, report, node_class) -> None:
     with student_node(report, rt, node_class, "heartbeat_status_probe") as (node, probe):
         if node is None:
             return
-        subs, problem = _endpoints(node.subscriptions, "/heartbeat", String)
-        if not report.add("monitor: it subscribes to /heartbeat (std_msgs/msg/String)", not problem, problem,
-                          hint="self.create_subscription(String, 'heartbeat', self.on_beat, qos, "
-                               "event_callbacks=...)"):
+        subs = _endpoint_criterion(report, "monitor: it subscribes to /heartbeat (std_msgs/msg/String)",
+                                   node.subscriptions, "/heartbeat", String,
+                                   "self.create_subscription(String, 'heartbeat', self.on_beat, qos, "
+                                   "event_callbacks=...)")
+        if not subs:
             return
         wrong = _mismatches(HEARTBEAT_QOS, subs[0].qos_profile)
         if not report.add("monitor: compatible with a MANUAL_BY_TOPIC heartbeat, lease 0.5 s", not wrong,
                           wrong, hint="Request MANUAL_BY_TOPIC with a lease no shorter than 0.5 s."):
             return
-        _pubs, problem = _endpoints(node.publishers, "/heartbeat/status", String)
-        if not report.add("monitor: it publishes on /heartbeat/status (std_msgs/msg/String)", not problem,
-                          problem,
-                          hint="self.status = self.create_publisher(String, 'heartbeat/status', 10)"):
+        pubs = _endpoint_criterion(report, "monitor: it publishes on /heartbeat/status (std_msgs/msg/String)",
+                                   node.publishers, "/heartbeat/status", String,
+                                   "self.status = self.create_publisher(String, 'heartbeat/status', 10)")
+        if not pubs:
             return
         said: list[tuple[float, str]] = []  # (time.monotonic(), text)
         probe.create_subscription(String, "/heartbeat/status",
