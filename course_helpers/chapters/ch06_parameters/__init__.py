@@ -17,4 +17,4 @@ from course_helpers.chapters.ch06_parameters.nodes import (
     RateTalker,
     make_configured_node,
 )
-from course_helpers.chapters.ch06_parameters.tuning import RateTuner
+from course_helpers.chapters.ch06_parameters.rate_tuner import RateTuner

@@ -18,6 +18,14 @@ The notebook uses ``from course_helpers.chapters import ch07_dds as dds`` and ``
 
 # ruff: noqa: F401  (every import below is a re-export for the notebook)
 
+from course_helpers.chapters.ch07_dds.communication_models import (
+    MODELS,
+    ModelResult,
+    center_failure_table,
+    compare_models,
+    plot_models,
+    simulate_model,
+)
 from course_helpers.chapters.ch07_dds.discovery import (
     DiscoveryAnchor,
     DiscoveryProbe,
@@ -26,16 +34,18 @@ from course_helpers.chapters.ch07_dds.discovery import (
     measure_discovery,
     summarize_discovery,
 )
+from course_helpers.chapters.ch07_dds.discovery_settings import (
+    SETTINGS,
+    AnnouncementTraffic,
+    DiscoveryComparison,
+    compare_discovery,
+    discovery_port,
+    listen_to_announcements,
+    measure_announcements,
+    plot_discovery,
+)
 from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
 from course_helpers.chapters.ch07_dds.middleware import installed_rmw_implementations, middleware_report
-from course_helpers.chapters.ch07_dds.models import (
-    MODELS,
-    ModelResult,
-    center_failure_table,
-    compare_models,
-    plot_models,
-    simulate_model,
-)
 from course_helpers.chapters.ch07_dds.names import (
     DdsEntity,
     dds_entities,
@@ -62,15 +72,5 @@ from course_helpers.chapters.ch07_dds.transports import (
     measure_transports,
     plot_transports,
     run_ping,
-)
-from course_helpers.chapters.ch07_dds.tuning import (
-    SETTINGS,
-    AnnouncementTraffic,
-    DiscoveryComparison,
-    compare_discovery,
-    discovery_port,
-    listen_to_announcements,
-    measure_announcements,
-    plot_discovery,
 )
 from course_helpers.core.domains import nodes_in_domain, reserve_spare_domain

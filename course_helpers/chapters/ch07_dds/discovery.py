@@ -16,8 +16,8 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch07_dds.results import run_child_for_result
 from course_helpers.core.channel import report
+from course_helpers.core.child_results import run_child_for_result
 from course_helpers.core.errors import CourseError
 from course_helpers.core.runtime import get_runtime
 

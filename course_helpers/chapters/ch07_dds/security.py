@@ -6,8 +6,8 @@ import os
 
 from rclpy.node import Node
 
-from course_helpers.chapters.ch07_dds.results import run_child_for_result
 from course_helpers.core.channel import report
+from course_helpers.core.child_results import run_child_for_result
 
 
 def secure_node_attempt() -> None:

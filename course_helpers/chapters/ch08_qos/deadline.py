@@ -15,7 +15,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.qos import QoSProfile
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch08_qos.common import remove_nodes
+from course_helpers.chapters.ch08_qos.cleanup import remove_nodes
 from course_helpers.core.errors import CourseError
 from course_helpers.core.qos_dict import seconds_to_duration
 

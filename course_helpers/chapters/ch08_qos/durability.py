@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch08_qos.common import DemoClock, remove_nodes
+from course_helpers.chapters.ch08_qos.cleanup import DemoClock, remove_nodes
 from course_helpers.core.qos_dict import seconds_to_duration
 from course_helpers.core.waiting import poll_until, wait_until
 

@@ -8,7 +8,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSHistoryPolicy, QoSProfile
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch08_qos.common import remove_nodes
+from course_helpers.chapters.ch08_qos.cleanup import remove_nodes
 
 BURST_TOPIC = "qos_burst"
 

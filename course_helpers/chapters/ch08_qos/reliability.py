@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from rclpy.event_handler import SubscriptionEventCallbacks
 from std_msgs.msg import UInt8MultiArray
 
-from course_helpers.chapters.ch08_qos.common import remove_nodes
+from course_helpers.chapters.ch08_qos.cleanup import remove_nodes
 from course_helpers.chapters.ch08_qos.publishers import StreamPublisher
 from course_helpers.core.errors import CourseError
 from course_helpers.core.qos_dict import qos_from_dict
