@@ -2,7 +2,7 @@
 
 * :mod:`.files` - what a ``--params-file`` YAML file gives one node, and the arguments that load it;
 * :mod:`.nodes` - the configurable talker and listener that the chapter starts;
-* :mod:`.tuning` - retune a running node's rate through its parameter services and measure it;
+* :mod:`.rate_tuner` - retune a running node's rate through its parameter services and measure it;
 * :mod:`.launching` - start configured nodes in child processes together, stop them together.
 
 The notebook uses ``from course_helpers.chapters.ch06_parameters import <name>``.

@@ -1,11 +1,11 @@
 """Chapter 07, DDS and discovery, measured on the live system.
 
-* :mod:`.models` - four communication models routed message by message (a count in pure Python,
+* :mod:`.communication_models` - four communication models routed message by message (a count in pure Python,
   not a measurement: no DDS runs there);
 * :mod:`.listener` - a child-process listener that reports what it hears (domains, discovery server);
   the spare domain and the domain probe come from :mod:`course_helpers.core.domains`;
 * :mod:`.discovery` - how long a new process takes to find a node (the probe and the anchor);
-* :mod:`.tuning` - discovery with Fast DDS's default announcement period against the course's, and
+* :mod:`.discovery_settings` - discovery with Fast DDS's default announcement period against the course's, and
   what announcing costs;
 * :mod:`.server` - eProsima's discovery server, started and stopped from the notebook;
 * :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;

@@ -9,9 +9,20 @@ from dataclasses import dataclass
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch08_qos.cleanup import DemoClock, remove_nodes
+from course_helpers.chapters.ch08_qos.cleanup import remove_nodes
 from course_helpers.core.qos_dict import seconds_to_duration
 from course_helpers.core.waiting import poll_until, wait_until
+
+
+class DemoClock:
+    """Seconds since the demo started (``start`` may be reset once the nodes are matched)."""
+
+    def __init__(self):
+        self.start = time.monotonic()
+
+    def now(self) -> float:
+        """Seconds since :attr:`start`."""
+        return time.monotonic() - self.start
 
 
 def demo_durability(rt, published: int = 5, publisher_depth: int = 3) -> dict[str, list[int]]:
