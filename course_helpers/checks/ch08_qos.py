@@ -311,9 +311,9 @@ def check_deadline_watchdog(node_class, rt=None) -> CheckReport:
     with student_node(report, rt, node_class, "watchdog_probe") as (node, probe):
         if node is None:
             return report
-        subs = _endpoint_criterion(report, "it subscribes to /odom (nav_msgs/msg/Odometry)",
-                                   node.subscriptions, "/odom", Odometry,
-                                   "self.create_subscription(Odometry, 'odom', self.on_odom, qos)")
+        subs = _endpoint_criterion(
+            report, "it subscribes to /odom (nav_msgs/msg/Odometry)", node.subscriptions, "/odom", Odometry,
+            "self.create_subscription(Odometry, 'odom', self.on_odom, qos)")
         if not subs:
             return report
         deadline_s = duration_seconds(subs[0].qos_profile.deadline)
@@ -329,10 +329,9 @@ def check_deadline_watchdog(node_class, rt=None) -> CheckReport:
                           not wrong, wrong,
                           hint="A subscription cannot request a shorter deadline than the publisher offers."):
             return report
-        pubs = _endpoint_criterion(report, "it publishes on /alarm (std_msgs/msg/String)",
-                                   node.publishers, "/alarm", String,
-                                   "self.alarm = self.create_publisher(String, 'alarm', 10)")
-        if not pubs:
+        if not _endpoint_criterion(
+            report, "it publishes on /alarm (std_msgs/msg/String)", node.publishers, "/alarm", String,
+            "self.alarm = self.create_publisher(String, 'alarm', 10)"):
             return report
         alarms: list[float] = []  # time.monotonic() of each alarm
         probe.create_subscription(String, "/alarm", lambda _m: alarms.append(time.monotonic()),
@@ -395,10 +394,10 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
     with student_node(report, rt, node_class, "heartbeat_probe") as (node, probe):
         if node is None:
             return
-        pubs = _endpoint_criterion(report,
-                                   "heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)",
-                                   node.publishers, "/heartbeat", String,
-                                   "self.publisher = self.create_publisher(String, 'heartbeat', qos)")
+        pubs = _endpoint_criterion(
+            report, "heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)",
+            node.publishers, "/heartbeat", String,
+            "self.publisher = self.create_publisher(String, 'heartbeat', qos)")
         if not pubs:
             return
         offered = pubs[0].qos_profile
@@ -411,11 +410,10 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
                           hint="liveliness=LivelinessPolicy.MANUAL_BY_TOPIC, "
                                "liveliness_lease_duration=Duration(seconds=0.5)"):
             return
-        subs = _endpoint_criterion(report,
-                                   "heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
-                                   node.subscriptions, "/heartbeat/enable", Bool,
-                                   "self.create_subscription(Bool, 'heartbeat/enable', self.on_enable, 10)")
-        if not subs:
+        if not _endpoint_criterion(
+            report, "heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
+            node.subscriptions, "/heartbeat/enable", Bool,
+            "self.create_subscription(Bool, 'heartbeat/enable', self.on_enable, 10)"):
             return
         seen = {"alive": 0, "lost": 0}  # writers alive now; times one ran out of its lease
 
@@ -456,20 +454,20 @@ def _check_monitor_node(rt, report, node_class) -> None:
     with student_node(report, rt, node_class, "heartbeat_status_probe") as (node, probe):
         if node is None:
             return
-        subs = _endpoint_criterion(report, "monitor: it subscribes to /heartbeat (std_msgs/msg/String)",
-                                   node.subscriptions, "/heartbeat", String,
-                                   "self.create_subscription(String, 'heartbeat', self.on_beat, qos, "
-                                   "event_callbacks=...)")
+        subs = _endpoint_criterion(
+            report, "monitor: it subscribes to /heartbeat (std_msgs/msg/String)",
+            node.subscriptions, "/heartbeat", String,
+            "self.create_subscription(String, 'heartbeat', self.on_beat, qos, event_callbacks=...)")
         if not subs:
             return
         wrong = _mismatches(HEARTBEAT_QOS, subs[0].qos_profile)
         if not report.add("monitor: compatible with a MANUAL_BY_TOPIC heartbeat, lease 0.5 s", not wrong,
                           wrong, hint="Request MANUAL_BY_TOPIC with a lease no shorter than 0.5 s."):
             return
-        pubs = _endpoint_criterion(report, "monitor: it publishes on /heartbeat/status (std_msgs/msg/String)",
-                                   node.publishers, "/heartbeat/status", String,
-                                   "self.status = self.create_publisher(String, 'heartbeat/status', 10)")
-        if not pubs:
+        if not _endpoint_criterion(
+            report, "monitor: it publishes on /heartbeat/status (std_msgs/msg/String)",
+            node.publishers, "/heartbeat/status", String,
+            "self.status = self.create_publisher(String, 'heartbeat/status', 10)"):
             return
         said: list[tuple[float, str]] = []  # (time.monotonic(), text)
         probe.create_subscription(String, "/heartbeat/status",
