@@ -27,22 +27,10 @@ def fail_after_report() -> None:
 
 
 def udp_addresses(pid: int) -> list[str]:
-    """The IPv4 addresses that process ``pid``'s UDP sockets are bound to (from /proc)."""
-    import socket
-    import struct
+    """The addresses that process ``pid``'s IPv4 UDP sockets are bound to."""
+    import psutil
 
-    inodes = set()
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            target = os.readlink(f"/proc/{pid}/fd/{fd}")
-        except OSError:
-            continue  # closed meanwhile
-        if target.startswith("socket:["):
-            inodes.add(target[len("socket:["):-1])
-    with open("/proc/net/udp", encoding="ascii") as table:
-        rows = [line.split() for line in table.read().splitlines()[1:]]
-    local = [row[1].split(":")[0] for row in rows if row[9] in inodes]  # hex, little-endian
-    return [socket.inet_ntoa(struct.pack("<I", int(address, 16))) for address in local]
+    return [c.laddr.ip for c in psutil.Process(pid).net_connections(kind="udp4") if c.laddr]
 
 
 def report_participant_setup(seconds: float = 60.0) -> None:

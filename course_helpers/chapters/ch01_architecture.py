@@ -2,13 +2,13 @@
 
 * :func:`layer_stack` / :func:`show_layer_stack` / :func:`draw_layer_stack` - rclpy, rcl, rmw,
   the rmw implementation, Fast DDS and Fast CDR as this kernel runs them: package versions and
-  the shared libraries actually mapped into the process (read from ``/proc/self/maps``);
+  the shared libraries actually mapped into the process (its memory maps, read with psutil);
 * :func:`transports_in_use` - the shared-memory segments and UDP ports Fast DDS opened here;
 * :class:`NamedTalker` and :class:`ChatterCounter` - nodes for the demo in which nodes in
   separate processes find each other with nothing started first, and keep talking when one of
   them is killed (``rt.spawn('talker_a', NamedTalker, {'name': 'talker_a'})``).
 
-Linux only (``/proc``), like the rest of the course.
+Linux only, like the rest of the course.
 """
 
 from __future__ import annotations
@@ -73,18 +73,21 @@ def loaded_libraries(pattern: str | None = None, pid: int | str = "self") -> lis
     Returns:
         The sorted basenames, e.g. ``['libfastrtps.so.2.14', 'librmw_fastrtps_cpp.so']``.
     """
-    try:
-        with open(f"/proc/{pid}/maps", encoding="utf-8") as handle:
-            lines = handle.read().splitlines()
-    except OSError as exc:
-        raise CourseError(f"cannot read /proc/{pid}/maps ({exc}); this needs Linux") from None
-    names = set()
-    for line in lines:
-        parts = line.split()
-        if len(parts) >= 6 and ".so" in parts[-1]:
-            names.add(os.path.basename(parts[-1]))
+    names = {os.path.basename(path) for path in _mapped_files(pid) if ".so" in path}
     regex = re.compile(pattern) if pattern else None
     return sorted(n for n in names if regex is None or regex.search(n))
+
+
+def _mapped_files(pid: int | str = "self") -> list[str]:
+    """The paths of the files mapped into process ``pid`` ('self': this one)."""
+    import psutil
+
+    try:
+        process = psutil.Process() if pid == "self" else psutil.Process(int(pid))
+        return [region.path for region in process.memory_maps(grouped=True)]
+    except (psutil.Error, ValueError) as exc:
+        raise CourseError(f"cannot read the memory maps of process {pid} ({exc}); this needs Linux "
+                          "and a process of your own") from None
 
 
 def layer_stack() -> list[Layer]:
@@ -159,40 +162,19 @@ def transports_in_use(domain_id: int | None = None) -> Transports:
 
     Returns:
         A :class:`Transports`. Fast DDS keeps the shared-memory segments and ports in
-        ``/dev/shm/fastrtps_*`` and ``/dev/shm/fastdds_*``; UDP sockets are found by matching this
-        process's socket file descriptors with ``/proc/self/net/udp``. The runtime's DDS
+        ``/dev/shm/fastrtps_*`` and ``/dev/shm/fastdds_*``, mapped into the process; the UDP ports
+        are those of this process's UDP sockets (both read with psutil). The runtime's DDS
         participant is created first if no node has created it yet.
     """
+    import psutil
+
     from course_helpers.core.runtime import get_runtime
 
     get_runtime().graph_nodes()  # rmw creates the participant (and its transports) with the first node
     if domain_id is None:
         domain_id = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
-    shm = set()
-    with open("/proc/self/maps", encoding="utf-8") as handle:
-        for line in handle:
-            path = line.split()[-1] if line.strip() else ""
-            if path.startswith("/dev/shm/fast"):
-                shm.add(os.path.basename(path))
-    inodes = set()
-    for fd in os.listdir("/proc/self/fd"):
-        try:
-            target = os.readlink(f"/proc/self/fd/{fd}")
-        except OSError:
-            continue
-        if target.startswith("socket:["):
-            inodes.add(target[8:-1])
-    ports = set()
-    for table in ("/proc/self/net/udp", "/proc/self/net/udp6"):
-        try:
-            with open(table, encoding="utf-8") as handle:
-                rows = handle.read().splitlines()[1:]
-        except OSError:
-            continue
-        for row in rows:
-            cols = row.split()
-            if len(cols) > 9 and cols[9] in inodes:
-                ports.add(int(cols[1].rsplit(":", 1)[1], 16))
+    shm = {os.path.basename(path) for path in _mapped_files() if path.startswith("/dev/shm/fast")}
+    ports = {c.laddr.port for c in psutil.Process().net_connections(kind="udp") if c.laddr}
     return Transports(domain_id, sorted(shm),
                       [(p, classify_port(p, domain_id)) for p in sorted(ports)])
 
