@@ -4,7 +4,7 @@ Start a notebook with ``from course_helpers import get_runtime`` and ``rt = get_
 The folders are the layers, and a module imports only from the layers below its own
 (``tests/test_layers.py`` checks it):
 
-* ``core/``: the runtime, processes, domains, waiting, names, conversions (rclpy only);
+* ``core/``: the runtime, processes, domains, waiting, names, conversions (rclpy and a few named extras);
 * ``notebook/``: what only makes sense in Jupyter: the ``%ros2`` magics, quizzes, widgets;
 * ``viz/``: the live computation graph and the course's diagrams;
 * ``nodes/``: small idiomatic nodes that several chapters reuse;

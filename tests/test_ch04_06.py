@@ -236,9 +236,9 @@ def test_rate_tuner_retunes_a_running_node(rt):
 
 
 def test_rate_tuner_widget_draws_outside_the_executor_and_stops_with_its_node(rt, monkeypatch):
-    from course_helpers.chapters.ch06_parameters import tuning
+    from course_helpers.chapters.ch06_parameters import rate_tuner
 
-    monkeypatch.setattr(tuning, "REDRAW_IDLE_S", 0.5)
+    monkeypatch.setattr(rate_tuner, "REDRAW_IDLE_S", 0.5)
     rt.add(RateTalker, "talker", parameter_overrides=[Parameter("rate_hz", value=10.0)])
     tuner = RateTuner("/talker", "chatter", rt=rt)
     tuner.widget()

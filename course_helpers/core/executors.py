@@ -22,11 +22,18 @@ from rclpy.executors import (
     TimeoutException,
 )
 
+from course_helpers.core.waiting import changes
+
 ErrorHandler = Callable[[BaseException], None]
 
 
 def spin_until_stopped(executor, stop_requested: Callable[[], bool], on_error: ErrorHandler) -> None:
-    """Spin ``executor`` in this thread until ``stop_requested()`` or its context shuts down."""
+    """Spin ``executor`` in this thread until ``stop_requested()`` or its context shuts down.
+
+    After each callback it notifies :data:`~course_helpers.core.waiting.changes`, so a wait for what
+    a callback does (a message counted, a reply stored) wakes at once. (A multi-threaded executor
+    runs the callback in its pool after this; such a wait sees it at its next periodic look.)
+    """
     context = executor.context
     while not stop_requested() and context.ok():
         try:
@@ -35,6 +42,7 @@ def spin_until_stopped(executor, stop_requested: Callable[[], bool], on_error: E
             continue  # the loop condition decides
         except Exception as exc:
             on_error(exc)
+        changes.notify()
 
 
 class SpinThread:

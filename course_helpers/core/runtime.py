@@ -19,6 +19,7 @@ Every chapter starts with ``rt = get_runtime()``. The runtime
 from __future__ import annotations
 
 import atexit
+import functools
 import os
 import threading
 import time
@@ -32,7 +33,7 @@ from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_opti
 
 from course_helpers.core import console as _console
 from course_helpers.core import processes
-from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S, apply_course_discovery, init_context
+from course_helpers.core.dds_config import apply_course_discovery, init_context
 from course_helpers.core.domains import DomainChoice, choose_domain
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.executors import (
@@ -40,10 +41,11 @@ from course_helpers.core.executors import (
     CourseSingleThreadedExecutor,
     SpinThread,
 )
-from course_helpers.core.logs import RosoutReader
-from course_helpers.core.names import as_full_name, full_name, node_full_names
+from course_helpers.core.graph_view import GraphView
+from course_helpers.core.logs import RosoutReader, log_to_consoles
+from course_helpers.core.names import as_full_name, full_name
 from course_helpers.core.node_hook import build_nodes, destroy_fully
-from course_helpers.core.spawning import ChildProcesses
+from course_helpers.core.spawning import ChildNodes
 from course_helpers.core.validation import (
     check_depth,
     check_namespace,
@@ -53,20 +55,25 @@ from course_helpers.core.validation import (
     resolve_interface,
 )
 from course_helpers.core.versions import rclpy_version
-from course_helpers.core.waiting import poll_until, wait_until
+from course_helpers.core.waiting import poll_until, wait_for_future, wait_until
 
-INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's daemon nodes
 EXECUTORS = ("single", "multi")
-# A new participant may learn of an older one only at its next periodic announcement (every 3 s
-# outside the course): by this long after the start, the graph shows what was already running.
-GRAPH_SETTLE_S = DEFAULT_ANNOUNCEMENT_S + 0.3
 HEALED_MESSAGE = (
     "[course] ROS was shut down from outside the course runtime (by rclpy.shutdown(), or by an "
     "interrupt while rclpy's signal handler was installed, as a plain rclpy.init() does). The "
     "runtime has restarted: run the cells that add your nodes again. {handler}")
 
 
-class CourseRuntime(ChildProcesses):
+def _children_method(method: Callable) -> Callable:
+    """A runtime method that calls ``method`` on the runtime's ChildNodes (same name, signature, docs)."""
+    @functools.wraps(method)
+    def call(self, *args, **kwargs):
+        return method(self._children, *args, **kwargs)
+
+    return call
+
+
+class CourseRuntime:
     """One per kernel: see the module docstring. Get it with :func:`get_runtime`."""
 
     def __init__(self, executor: str = "single", threads: int = 4):
@@ -84,12 +91,13 @@ class CourseRuntime(ChildProcesses):
         self._lock = threading.RLock()
         self._active = False  # started and not stopped by us
         self._started_at = 0.0
-        self._graph_settled = False
         self._router = _console.ConsoleRouter()
         self._in_kernel = _console.in_jupyter_kernel()
-        self._internal: Node | None = None
-        self._internal_spun = False
+        self._graph: GraphView | None = None
+        self._graph_spun = False
         self._log_reader: RosoutReader | None = None
+        self._children = ChildNodes(self._graph_view, self._router if self._in_kernel else None,
+                                    self._ensure_running)
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -122,13 +130,14 @@ class CourseRuntime(ChildProcesses):
                                                              self._router, self._record_error)
             if self._in_kernel:
                 self._router.start()
-                self._log_reader = RosoutReader(self.context, self._on_log, self._log_reader_error)
+                self._log_reader = RosoutReader(
+                    self.context, log_to_consoles(self._router),
+                    lambda exc: self._record_error(None, "the /rosout reader", exc))
             self._spinner = SpinThread(self.executor, "ros-executor",
                                        lambda exc: self._record_error(None, "the executor", exc),
                                        on_exit=lambda: self._router.enter(None)).start()
             self._active = True
             self._started_at = time.monotonic()
-            self._graph_settled = False
         return self
 
     def stop(self) -> None:
@@ -145,10 +154,10 @@ class CourseRuntime(ChildProcesses):
             if self._log_reader is not None:
                 self._log_reader.stop()
                 self._log_reader = None
-            if self._internal is not None:
-                _quietly(self._internal.destroy_node)
-                self._internal = None
-                self._internal_spun = False
+            if self._graph is not None:
+                self._graph.close()
+                self._graph = None
+                self._graph_spun = False
             if self.executor is not None:
                 _quietly(self.executor.shutdown, timeout_sec=1.0)
                 self.executor = None
@@ -299,6 +308,13 @@ class CourseRuntime(ChildProcesses):
     def _in_executor_thread(self) -> bool:
         return self._spinner is not None and threading.current_thread() is self._spinner.thread
 
+    # ------------------------------------------------------------------ child processes (core/spawning.py)
+    spawn = _children_method(ChildNodes.spawn)
+    wait_for_child_node = _children_method(ChildNodes.wait_for_child_node)
+    stop_child = _children_method(ChildNodes.stop_child)
+    stop_children = _children_method(ChildNodes.stop_children)
+    children = _children_method(ChildNodes.children)
+
     # ------------------------------------------------------------------ waiting
     def call_in_executor(self, function: Callable, *args, timeout: float = 5.0):
         """Run ``function(*args)`` in the executor thread and return its result.
@@ -312,23 +328,15 @@ class CourseRuntime(ChildProcesses):
         self.executor.wake()
         return self.wait_for_future(task, timeout=timeout, what=getattr(function, "__name__", "task"))
 
-    def wait_for_future(self, future, timeout: float = 5.0, what: str = "the future"):
-        """Wait (without spinning) until ``future`` is done; return its result.
-
-        Raises :class:`WaitTimeout` naming ``what`` after ``timeout`` seconds.
-        """
-        done = threading.Event()
-        future.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout):
-            raise WaitTimeout(f"timed out after {timeout:g} s waiting for {what}")
-        if future.exception() is not None:
-            raise future.exception()
-        return future.result()
+    wait_for_future = staticmethod(wait_for_future)
 
     def wait_until(self, predicate: Callable[[], object], timeout: float = 5.0,
                    what: str = "the condition") -> bool:
         """Wait until ``predicate()`` is true; if not, raise :class:`WaitTimeout` naming ``what``
-        and the nodes the graph lists at that moment (what is there when something is not)."""
+        and the nodes the graph lists at that moment (what is there when something is not).
+
+        The wait wakes on graph changes, child reports and this kernel's callbacks, and looks every
+        20 ms besides (:mod:`.waiting`)."""
         try:
             return wait_until(predicate, timeout, what)
         except WaitTimeout as exc:
@@ -359,21 +367,15 @@ class CourseRuntime(ChildProcesses):
         return received[:count]
 
     def wait_for_node(self, fqn: str, timeout: float = 10.0) -> None:
-        """Wait until a node (in any process of this domain) shows up in the ROS graph."""
+        """Wait until a node (in any process of this domain) shows up in the ROS graph (woken by the
+        graph's changes)."""
         fqn = as_full_name(fqn)
-        wait_until(lambda: fqn in self.graph_nodes(), timeout, f"node {fqn} in the graph")
+        graph = self._graph_view()
+        wait_until(lambda: fqn in graph.nodes(), timeout, f"node {fqn} in the graph", graph.wait_period)
 
     # ------------------------------------------------------------------ the graph
     def graph_nodes(self, include_hidden: bool = False) -> list[str]:
-        """Full names of all nodes discovered in this domain (the live graph).
-
-        A node listed without a single endpoint is left out. rclpy gives every node at least its
-        ``/parameter_events`` publisher, so such an entry is either a node still being created or
-        one that rmw keeps listing after its process has left (see :mod:`.child` on the goodbye
-        that overtakes a node's last graph update).
-        """
-        names = node_full_names(self._graph_node().get_node_names_and_namespaces(), include_hidden)
-        return [fqn for fqn in names if any(self._graph_entry(fqn))]
+        return self._graph_view().nodes(include_hidden)
 
     @property
     def graph(self) -> Node:
@@ -381,40 +383,32 @@ class CourseRuntime(ChildProcesses):
 
         It is spun by the executor from then on, so subscriptions and clients created on it work.
         """
-        node = self._graph_node()
-        if not self._internal_spun:
+        node = self._graph_view().node
+        if not self._graph_spun:
             self.executor.add_node(node)  # every spun node costs time in each wait: only when needed
-            self._internal_spun = True
+            self._graph_spun = True
         return node
 
     def settle_graph(self) -> None:
-        """Wait, once per start, until discovery has found the processes that were already running.
+        self._graph_view().settle()
 
-        A new participant announces itself at start, and the others answer; ros2cli keeps a
-        daemon running for the same reason. ``%ros2`` calls this before its first graph query,
-        so a command run right after the runtime started does not show an empty graph.
-        """
-        self._graph_node()
-        if not self._graph_settled:
-            remaining = self._started_at + GRAPH_SETTLE_S - time.monotonic()
-            if remaining > 0:
-                time.sleep(remaining)
-            self._graph_settled = True
+    graph_nodes.__doc__ = GraphView.nodes.__doc__
+    settle_graph.__doc__ = GraphView.settle.__doc__
 
     def graph_if_running(self) -> Node | None:
         """The hidden graph node while the runtime runs, else None (never starts the runtime)."""
         with self._lock:
             if not self.running:
                 return None
-        return self._graph_node()
+        return self._graph_view().node
 
-    def _graph_node(self) -> Node:
+    def _graph_view(self) -> GraphView:
+        """The graph as this runtime sees it (its hidden node, made on first use)."""
         self._ensure_running()
         with self._lock:
-            if self._internal is None:
-                self._internal = Node(INTERNAL_NODE, context=self.context, enable_rosout=False,
-                                      start_parameter_services=False)
-            return self._internal
+            if self._graph is None:
+                self._graph = GraphView(self.context, self._started_at)
+            return self._graph
 
     # ------------------------------------------------------------------ status
     def status(self) -> dict:
@@ -446,14 +440,6 @@ class CourseRuntime(ChildProcesses):
     def _record_error(self, console, where: str, exc: BaseException) -> None:
         self.errors.append(f"{where}: {type(exc).__name__}: {exc}")
         self._router.write_error(console, where, exc)
-
-    def _log_reader_error(self, exc: BaseException) -> None:
-        self._record_error(None, "the /rosout reader", exc)
-
-    def _on_log(self, entry) -> None:
-        stamp = entry.stamp.sec + entry.stamp.nanosec * 1e-9
-        line = _console.format_log_line(entry.level, entry.name, entry.msg, stamp)
-        self._router.write_log(entry.name, line)
 
 
 def _check_executor(kind) -> None:

@@ -2,7 +2,7 @@
 
 * :mod:`.files` - what a ``--params-file`` YAML file gives one node, and the arguments that load it;
 * :mod:`.nodes` - the configurable talker and listener that the chapter starts;
-* :mod:`.tuning` - retune a running node's rate through its parameter services and measure it;
+* :mod:`.rate_tuner` - retune a running node's rate through its parameter services and measure it;
 * :mod:`.launching` - start configured nodes in child processes together, stop them together, and
   write the equivalent launch file for a ROS 2 installation.
 
@@ -18,4 +18,4 @@ from course_helpers.chapters.ch06_parameters.nodes import (
     RateTalker,
     make_configured_node,
 )
-from course_helpers.chapters.ch06_parameters.tuning import RateTuner
+from course_helpers.chapters.ch06_parameters.rate_tuner import RateTuner

@@ -1,11 +1,11 @@
 """Chapter 07, DDS and discovery, measured on the live system.
 
-* :mod:`.models` - four communication models routed message by message (a count in pure Python,
+* :mod:`.communication_models` - four communication models routed message by message (a count in pure Python,
   not a measurement: no DDS runs there);
 * :mod:`.listener` - a child-process listener that reports what it hears (domains, discovery server);
   the spare domain and the domain probe come from :mod:`course_helpers.core.domains`;
 * :mod:`.discovery` - how long a new process takes to find a node (the probe and the anchor);
-* :mod:`.tuning` - discovery with Fast DDS's default announcement period against the course's, and
+* :mod:`.discovery_settings` - discovery with Fast DDS's default announcement period against the course's, and
   what announcing costs;
 * :mod:`.server` - eProsima's discovery server, started and stopped from the notebook;
 * :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;
@@ -18,6 +18,14 @@ The notebook uses ``from course_helpers.chapters import ch07_dds as dds`` and ``
 
 # ruff: noqa: F401  (every import below is a re-export for the notebook)
 
+from course_helpers.chapters.ch07_dds.communication_models import (
+    MODELS,
+    ModelResult,
+    center_failure_table,
+    compare_models,
+    plot_models,
+    simulate_model,
+)
 from course_helpers.chapters.ch07_dds.discovery import (
     DiscoveryAnchor,
     DiscoveryProbe,
@@ -26,16 +34,18 @@ from course_helpers.chapters.ch07_dds.discovery import (
     measure_discovery,
     summarize_discovery,
 )
+from course_helpers.chapters.ch07_dds.discovery_settings import (
+    SETTINGS,
+    AnnouncementTraffic,
+    DiscoveryComparison,
+    compare_discovery,
+    discovery_port,
+    listen_to_announcements,
+    measure_announcements,
+    plot_discovery,
+)
 from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
 from course_helpers.chapters.ch07_dds.middleware import installed_rmw_implementations, middleware_report
-from course_helpers.chapters.ch07_dds.models import (
-    MODELS,
-    ModelResult,
-    center_failure_table,
-    compare_models,
-    plot_models,
-    simulate_model,
-)
 from course_helpers.chapters.ch07_dds.names import (
     DdsEntity,
     dds_entities,
@@ -66,15 +76,5 @@ from course_helpers.chapters.ch07_dds.transports import (
     measure_transports,
     plot_transports,
     run_ping,
-)
-from course_helpers.chapters.ch07_dds.tuning import (
-    SETTINGS,
-    AnnouncementTraffic,
-    DiscoveryComparison,
-    compare_discovery,
-    discovery_port,
-    listen_to_announcements,
-    measure_announcements,
-    plot_discovery,
 )
 from course_helpers.core.domains import nodes_in_domain, reserve_spare_domain
