@@ -46,22 +46,23 @@ lab: setup
 	$(PY) tools/working_copy.py --work $(WORK)
 	$(VENV)/bin/jupyter lab --notebook-dir=$(WORK) --port=$(PORT) $(ROOT_FLAG)
 
-# -rs: every skipped test is listed with its reason (what is missing and how to get it).
+# -rfEs: every failure, error and skipped test is listed at the end, a skip with its reason (what is
+# missing and how to get it).
 test: setup
-	$(PY) -m pytest tests -q -rs $(XDIST)
-	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rs
+	$(PY) -m pytest tests -q -rfEs $(XDIST)
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rfEs
 
 unit: setup
-	$(PY) -m pytest tests -q -rs $(XDIST)
+	$(PY) -m pytest tests -q -rfEs $(XDIST)
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
-	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rs
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rfEs
 
 # Measure both stages and record each file's seconds in tests/durations.json (the order above).
 durations: setup
-	$(PY) -m pytest tests -q -rs $(XDIST) --record-durations
-	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rs --record-durations
+	$(PY) -m pytest tests -q -rfEs $(XDIST) --record-durations
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rfEs --record-durations
 
 lint: setup
 	$(VENV)/bin/ruff check course_helpers tests benchmarks tools notebooks book classroom

@@ -174,7 +174,7 @@ def test_the_rcl_talker_is_heard_by_python_and_stops_cleanly(rt, talker_program)
 def test_the_rcl_talker_stops_cleanly_on_ctrl_c_too(rt, talker_program):
     child = run_program("cpp_talker", talker_program)
     rt.wait_for_child_node(child, "/cpp_talker", 10)
-    child.process.send_signal(signal.SIGINT)
+    os.killpg(child.leader_pid, signal.SIGINT)  # what Ctrl+C in a terminal does: the whole group
     assert child.wait_for_exit(5, "the program to stop on SIGINT") == 0, child.output_tail()
 
 

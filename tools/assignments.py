@@ -207,8 +207,9 @@ def grade_one(course_dir: Path, assignment: str, student: str, sub: Path, out: P
     (out / "logs").mkdir(parents=True, exist_ok=True)
     (out / "logs" / f"{student}.log").write_text(child.log(), encoding="utf-8")
     child.stop()
-    left = isolation.sweep(run.marker)
     record = json.loads(Path(run.record).read_text()) if Path(run.record).exists() else {}
+    # what the student's kernel left running: killed by autograde_one before it exited, or now
+    left = record.get("killed_after_run", []) + isolation.sweep(run.marker)
     domains = record.get("domains", [])
     held = isolation.domains_left(domains, run.marker)
     tmp_removed = isolation.remove_tmp(run)

@@ -75,6 +75,7 @@ class ChildProcess:
         self.started = time.monotonic()
         self.stop_requested = False
         self._exit = ProcessGroup(process)
+        self._program_pid: int | None = None  # a program child's program, once found (see pid)
 
     # ------------------------------------------------------------------ state
     @property
@@ -84,6 +85,26 @@ class ChildProcess:
 
     @property
     def pid(self) -> int:
+        """The PID of the process that runs the target or the program.
+
+        A program child (:func:`program_argv`) is a small supervisor whose only child is the
+        program: this is the program's PID once the supervisor has forked it (the supervisor's
+        own for the few milliseconds before). :attr:`leader_pid` is the process group's leader.
+        """
+        if self._program_pid is None and self.argv[1:4] == PROGRAM_ARGV[1:4] and self.alive:
+            import psutil
+
+            try:
+                children = psutil.Process(self.process.pid).children()
+            except psutil.Error:
+                children = []
+            if children:
+                self._program_pid = children[0].pid
+        return self._program_pid or self.process.pid
+
+    @property
+    def leader_pid(self) -> int:
+        """The PID of the child the kernel started: its process group's leader (what stop signals)."""
         return self.process.pid
 
     @property
@@ -228,9 +249,12 @@ def python_target_argv(target, kwargs: dict | None = None) -> list[str]:
     return [sys.executable, "-m", "course_helpers.core.child", "run", spec, payload]
 
 
+PROGRAM_ARGV = [sys.executable, "-m", "course_helpers.core.child", "exec"]
+
+
 def program_argv(program: str, *args: str) -> list[str]:
     """The command line that runs an executable so that it dies with the kernel."""
-    return [sys.executable, "-m", "course_helpers.core.child", "exec", program, *map(str, args)]
+    return [*PROGRAM_ARGV, program, *map(str, args)]
 
 
 # ---------------------------------------------------------------------- starting

@@ -57,8 +57,7 @@ class DiscoveryServer:
 
     @property
     def pid(self) -> int:
-        """The process ID of its process group: the course's supervisor, whose only child the
-        server is (``core/supervisor.py``)."""
+        """The server program's process ID (its parent is the course's supervisor, ``core/supervisor.py``)."""
         return self.child.pid
 
     @property
