@@ -47,9 +47,12 @@ _RELIABLE_IDLE_END_S = 3.5  # a late joiner that got nothing yet: one Fast DDS h
 _LATE_JOIN_LISTEN_S = 1.0  # a matched late joiner listens this long after its last sample
 _DRAIN_LIMIT_S = 2.0  # best effort: after the publisher is done, wait at most this long for the rest
 # Reliable: a run ends when the writer says every sample is acknowledged. A repair waits for a
-# heartbeat (every 3 s by default), and on a busy machine a burst can need several rounds of them:
-# the lab waits this long at most after the last sample was sent (the Stop button ends it sooner).
-_RELIABLE_LIMIT_S = 60.0
+# heartbeat (every 3 s by default), and on a busy machine a burst can need many rounds of them (up
+# to a minute was measured beside a CPU hog and another kernel's nodes). The lab waits as long as
+# repaired samples keep arriving, at most _RELIABLE_LIMIT_S after the last sample was sent, and
+# gives up when none arrived for _RELIABLE_STALL_S (several heartbeat periods). Stop ends it sooner.
+_RELIABLE_LIMIT_S = 90.0
+_RELIABLE_STALL_S = 20.0
 # A subscriber that works processing_ms on each sample needs at least that long per queued sample:
 # when the queue could not drain within this many seconds, the run ends with the rest in flight.
 _BACKLOG_LIMIT_S = 6.0
@@ -262,6 +265,9 @@ def _give_up(run, now, config) -> str:
     if waited > limit:
         what = "acknowledgements and repairs" if config.reliability == "reliable" else "queued samples"
         return f"the lab stopped waiting for {what} {limit:g} s after the last sample was sent"
+    quiet_s = now - max(run.summary_at, run.sub.last_arrival)
+    if config.reliability == "reliable" and quiet_s > _RELIABLE_STALL_S:
+        return f"no sample arrived for {_RELIABLE_STALL_S:g} s: the repairs had stopped coming"
     if config.processing_ms:
         remaining = run.summary["published"] - (run.sub.last_seq or 0)
         needed_s = remaining * config.processing_ms / 1000  # the subscriber's own time, at least
