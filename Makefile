@@ -14,8 +14,6 @@ WORK   ?= $(HOME)/ros2-course-work
 # (conftest.py; --no-loadscope-reorder keeps that order instead of xdist's count of tests).
 JOBS   ?= 5
 XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
-# Jupyter refuses to run as root (containers, CI machines) unless told it is deliberate.
-ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
 # The slowest honest cell takes about 25 s on a loaded 2-core machine.
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
@@ -41,10 +39,12 @@ $(STAMP): environment.txt pyproject.toml tools/jupyterlab/overrides.json
 	@touch $(STAMP)
 
 # `make lab` opens your own copy of the notebooks (WORK), brought up to date with the course
-# without overwriting your edits (tools/working_copy.py merges cell by cell).
+# without overwriting your edits (tools/working_copy.py merges cell by cell), at the first
+# notebook, without nbgrader's instructor tools; it prints the URL to open, and Ctrl-C stops it
+# cleanly (tools/lab.py). `make lab INSTRUCTOR=1` keeps nbgrader (docs/assignments.md).
+INSTRUCTOR ?=
 lab: setup
-	$(PY) tools/working_copy.py --work $(WORK)
-	$(VENV)/bin/jupyter lab --notebook-dir=$(WORK) --port=$(PORT) $(ROOT_FLAG)
+	@$(PY) tools/lab.py --work $(WORK) --port $(PORT) $(if $(filter-out 0 no false,$(INSTRUCTOR)),--instructor,)
 
 # -rfEs: every failure, error and skipped test is listed at the end, a skip with its reason (what is
 # missing and how to get it).
