@@ -1,0 +1,23 @@
+"""What ``get_runtime()`` sets up in a notebook kernel, once: the ``%ros2`` magics, interrupts that
+keep ROS (:mod:`.interrupts`), and the cell each node comes from (:mod:`.cell_origins`)."""
+
+from __future__ import annotations
+
+
+def set_up_once(runtime) -> None:
+    """Register the course's kernel hooks in the running IPython kernel (the first call only; later
+    calls only remove an rclpy signal handler installed meanwhile)."""
+    from IPython import get_ipython
+
+    from course_helpers.notebook import cell_origins, interrupts
+    from course_helpers.notebook.magics import register_once
+
+    shell = get_ipython()
+    if shell is None:
+        return
+    register_once()
+    interrupts.install(shell, runtime)
+    if getattr(shell, "_course_kernel_set_up", False):
+        return
+    shell._course_kernel_set_up = True
+    cell_origins.install(shell, runtime.origins)
