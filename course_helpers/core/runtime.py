@@ -431,8 +431,8 @@ class CourseRuntime:
 
     # ------------------------------------------------------------------ status
     def status(self) -> dict:
-        """Versions, middleware, domain, discovery range, nodes and child processes
-        (:func:`.status.status_of`)."""
+        """Versions, middleware, domain, discovery range, nodes, child processes, and the other
+        notebooks of this Jupyter server that run ROS (:func:`.status.status_of`)."""
         self._ensure_running()
         return status_of(self)
 

@@ -6,12 +6,13 @@ import os
 
 import rclpy
 
+from course_helpers.core.other_kernels import other_kernels
 from course_helpers.core.versions import rclpy_version
 
 
 def status_of(runtime) -> dict:
-    """Versions, middleware, domain, discovery range, executor, nodes, child processes and callback
-    errors."""
+    """Versions, middleware, domain, discovery range, executor, nodes, child processes, callback
+    errors, and the other notebooks of this Jupyter server that run ROS (:mod:`.other_kernels`)."""
     return {
         "rclpy": rclpy_version(),
         "rmw": rclpy.get_rmw_implementation_identifier(),
@@ -24,6 +25,7 @@ def status_of(runtime) -> dict:
         "children": {n: (c.pid, "running" if c.alive else f"exited {c.returncode}")
                      for n, c in runtime.children().items()},
         "callback_errors": len(runtime.errors),
+        "other_kernels": [kernel.describe() for kernel in other_kernels()],
     }
 
 
