@@ -4,6 +4,10 @@ item 6), with real kernels: both are children of this test process, as a server'
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+
+import pytest
 
 from .conftest import REPO
 from .kernel_session import KernelSession
@@ -59,3 +63,53 @@ def test_a_new_runtime_names_the_other_notebooks_that_run_ros():
         busy.shutdown()
         if new is not None:
             new.shutdown()
+
+
+HOLD_A_DOMAIN = """
+import time
+from course_helpers.core.domains import reserve_domain
+print(reserve_domain(), flush=True)
+time.sleep(60)
+"""
+
+# The same reservation made by a bare Python (another user cannot run this venv's), free domain first.
+HOLD_A_DOMAIN_BARE = """
+import socket, time
+for domain in range(101, 0, -1):
+    sock = socket.socket(socket.AF_UNIX)
+    try:
+        sock.bind(b'\\0ros2-course-domain-%d' % domain)
+    except OSError:
+        continue
+    sock.listen(1)
+    print(domain, flush=True)
+    time.sleep(60)
+"""
+
+ASK = """
+from course_helpers.core.other_kernels import other_kernels
+print([kernel.describe() for kernel in other_kernels()])
+"""
+
+
+def test_only_this_users_processes_of_the_same_parent_count():
+    """Siblings that hold a course domain count (named 'a process' without a notebook or a kernel);
+    another user's process holding one does not, whatever it holds."""
+    started = [subprocess.Popen([sys.executable, "-c", HOLD_A_DOMAIN], stdout=subprocess.PIPE, text=True)]
+    foreign = None
+    if os.getuid() == 0:  # only root can start a process of another user next to its own
+        foreign = subprocess.Popen(["/usr/bin/python3", "-c", HOLD_A_DOMAIN_BARE], stdout=subprocess.PIPE,
+                                   text=True, user="nobody", cwd="/")
+        started.append(foreign)
+    try:
+        domains = [int(proc.stdout.readline()) for proc in started]
+        asked = subprocess.run([sys.executable, "-c", ASK], capture_output=True, text=True, timeout=60)
+        assert asked.returncode == 0, asked.stderr
+        expected = f"['a process (pid {started[0].pid} in domain {domains[0]})']"
+        assert asked.stdout.strip() == expected, (asked.stdout, domains)
+        if foreign is None:
+            pytest.skip("not root: no process of another user to check (the rest passed)")
+    finally:
+        for proc in started:
+            proc.kill()
+            proc.wait(timeout=10)

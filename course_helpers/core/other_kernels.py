@@ -36,14 +36,14 @@ class OtherKernel:
     """A process of this Jupyter server, other than this one, with a course runtime."""
 
     pid: int
-    notebook: str  # its notebook's file name, or '' if its server did not say
+    name: str  # its notebook's file name; 'a kernel' or 'a process' if its server did not say
     domains: tuple[int, ...]  # the course domains it holds
     children: int  # course child processes it runs
 
     def describe(self) -> str:
         """'03_topics.ipynb (pid 4242 in domain 17 with 2 child processes)'."""
         domains = f"domain{'s' if len(self.domains) > 1 else ''} {' and '.join(map(str, self.domains))}"
-        text = f"{self.notebook or 'a kernel'} (pid {self.pid} in {domains}"
+        text = f"{self.name} (pid {self.pid} in {domains}"
         if self.children:
             text += f" with {self.children} child process{'es' if self.children > 1 else ''}"
         return text + ")"
@@ -70,11 +70,12 @@ def other_kernels() -> list[OtherKernel]:
             domains = domains_held_by(proc)
             if not domains:
                 continue
-            notebook = os.path.basename(proc.environ().get(SESSION_ENV, ""))
+            name = (os.path.basename(proc.environ().get(SESSION_ENV, ""))
+                    or ("a kernel" if any("ipykernel" in part for part in proc.cmdline()) else "a process"))
             children = sum(1 for child in proc.children() if _started_by(child, proc.pid))
         except psutil.Error:  # it ended while we looked
             continue
-        found.append(OtherKernel(proc.pid, notebook, tuple(domains), children))
+        found.append(OtherKernel(proc.pid, name, tuple(domains), children))
     return sorted(found, key=lambda kernel: kernel.pid)
 
 
