@@ -111,11 +111,12 @@ def test_explicit_signal_handler_options_are_honoured(kernel):
         "rclpy.init()\nprint('default', get_current_signal_handlers_options())\n"
         "rclpy.shutdown()\n"
         "rclpy.init(signal_handler_options=SignalHandlerOptions.SIGINT)\n"
+        "rt = get_runtime()\n"
         "print('explicit', get_current_signal_handlers_options())\n"
         "rclpy.shutdown()\n")
     assert error is None, out
     assert "default SignalHandlerOptions.NO" in out, out
-    assert "explicit SignalHandlerOptions.SIGINT" in out, out
+    assert "explicit SignalHandlerOptions.SIGINT" in out, out  # getting the runtime again keeps it
 
 
 BROKEN_CONSOLES = """

@@ -46,12 +46,12 @@ _installed: list[bool] = []
 
 
 def install(shell, runtime) -> None:
-    """Set up the three parts in this kernel (once; later calls only check rclpy's handlers)."""
-    if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
-        uninstall_signal_handlers()  # installed by an rclpy.init() that ran before the runtime started
+    """Set up the three parts in this kernel (the first call; later ones do nothing)."""
     if _installed:
         return
     _installed.append(True)
+    if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
+        uninstall_signal_handlers()  # installed by a textbook rclpy.init() that ran before the course's
     rclpy.init = _course_init(rclpy.init)
     if threading.current_thread() is threading.main_thread():  # where Python lets a program set it
         SigintWaker().start()

@@ -7,8 +7,7 @@ from __future__ import annotations
 
 def set_up_once(runtime) -> None:
     """Register the course's kernel hooks in the running IPython kernel and name the other notebooks
-    that run ROS (the first call only; later calls only remove an rclpy signal handler installed
-    meanwhile)."""
+    that run ROS (the first call only)."""
     from IPython import get_ipython
 
     from course_helpers.core.other_kernels import notice, other_kernels
@@ -18,11 +17,11 @@ def set_up_once(runtime) -> None:
     shell = get_ipython()
     if shell is None:
         return
-    register_once()
-    interrupts.install(shell, runtime)
     if getattr(shell, "_course_kernel_set_up", False):
         return
     shell._course_kernel_set_up = True
+    register_once()
+    interrupts.install(shell, runtime)
     cell_origins.install(shell, runtime.origins)
     line = notice(other_kernels())
     if line:
