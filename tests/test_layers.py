@@ -36,9 +36,11 @@ CORE_EXTRAS = {
     "yaml": ({"course_helpers.core.msg_yaml"}, "messages as YAML, the way `ros2 topic echo` prints them"),
     "numpy": ({"course_helpers.core.build_interfaces"}, "the rosidl build needs NumPy's C headers"),
     "psutil": ({"course_helpers.core.domains", "course_helpers.core.supervisor",
-                "course_helpers.core.udp_sockets", "course_helpers.core.processes"},
+                "course_helpers.core.udp_sockets", "course_helpers.core.processes",
+                "course_helpers.core.other_kernels"},
                "who holds a domain; the descendants a child ends when it exits; a process's UDP "
-               "sockets; the program under a child's supervisor"),
+               "sockets; the program under a child's supervisor; the other kernels of the same "
+               "Jupyter server"),
     "IPython": ({"course_helpers.core.console"}, "a node's console under its notebook cell"),
 }
 

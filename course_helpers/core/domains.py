@@ -177,6 +177,17 @@ def domain_holders(domain: int) -> set[int]:
     return holders
 
 
+def domains_held_by(proc) -> list[int]:
+    """The course domains a process holds (its listening sockets with a reservation's name), sorted.
+
+    ``proc`` is a ``psutil.Process``; raises ``psutil.Error`` if it is gone or may not be inspected.
+    """
+    prefix = "@" + SOCKET_PREFIX
+    numbers = {c.laddr[len(prefix):] for c in proc.net_connections(kind="unix")
+               if isinstance(c.laddr, str) and c.laddr.startswith(prefix)}
+    return sorted(int(n) for n in numbers if n.isdigit())
+
+
 def held_domains() -> dict[int, list[str]]:
     """Every course domain some process holds: ``{domain: ['user pid command', ...]}``.
 
@@ -187,9 +198,7 @@ def held_domains() -> dict[int, list[str]]:
     found: dict[int, list[str]] = {}
     for proc in psutil.process_iter():
         try:
-            names = {c.laddr for c in proc.net_connections(kind="unix")}
-            mine = sorted(int(n[len(SOCKET_PREFIX) + 1:]) for n in names
-                          if isinstance(n, str) and n.startswith("@" + SOCKET_PREFIX))
+            mine = domains_held_by(proc)
             if mine:
                 described = f"{proc.username()} {proc.pid} {' '.join(proc.cmdline())[:100]}"
                 for domain in mine:

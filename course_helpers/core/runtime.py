@@ -11,9 +11,12 @@ Every chapter starts with ``rt = get_runtime()``. The runtime
 * waits for futures, conditions and messages from the notebook without spinning;
 * runs nodes in child processes through the process layer, and stops them with itself;
 * isolates each kernel in its own ROS domain with localhost-only discovery;
-* heals: if its context is shut down from outside (``rclpy.shutdown()``, or an interrupt
-  while rclpy's own signal handler is installed), the next use stops everything that is
-  left and starts afresh, and says so in one line.
+* heals: if its context is shut down from outside (``rclpy.shutdown(context=rt.context)``, or
+  an interrupt while an rclpy signal handler is installed), the next use stops everything that
+  is left and starts afresh, and says in one line which cells to run again (:mod:`.healing`).
+
+In a notebook, a textbook ``rclpy.init()`` installs no signal handler, so an interrupt never
+shuts this context down (:mod:`course_helpers.notebook.interrupts`).
 """
 
 from __future__ import annotations
@@ -25,7 +28,6 @@ import threading
 import time
 from collections.abc import Callable
 
-import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -42,10 +44,12 @@ from course_helpers.core.executors import (
     SpinThread,
 )
 from course_helpers.core.graph_view import GraphView
+from course_helpers.core.healing import Origins
 from course_helpers.core.logs import RosoutReader, log_to_consoles
 from course_helpers.core.names import as_full_name, full_name
 from course_helpers.core.node_hook import build_nodes, destroy_fully
 from course_helpers.core.spawning import ChildNodes
+from course_helpers.core.status import status_of, status_table
 from course_helpers.core.validation import (
     check_depth,
     check_namespace,
@@ -54,14 +58,12 @@ from course_helpers.core.validation import (
     interface_name,
     resolve_interface,
 )
-from course_helpers.core.versions import rclpy_version
 from course_helpers.core.waiting import poll_until, wait_for_future, wait_until
 
 EXECUTORS = ("single", "multi")
-HEALED_MESSAGE = (
-    "[course] ROS was shut down from outside the course runtime (by rclpy.shutdown(), or by an "
-    "interrupt while rclpy's signal handler was installed, as a plain rclpy.init() does). The "
-    "runtime has restarted: run the cells that add your nodes again. {handler}")
+HANDLER_REMOVED = ("rclpy's signal handler has been removed again, so the interrupt button stops "
+                   "only the cell.")
+INTERNAL_ERRORS_LOG = "runtime-errors.log"  # in log_dir: the tracebacks of the runtime's own threads
 
 
 def _children_method(method: Callable) -> Callable:
@@ -85,6 +87,7 @@ class CourseRuntime:
         self.executor = None
         self.errors: list[str] = []
         self.restarts = 0  # how often the runtime healed itself
+        self.origins = Origins()  # which cell added each node and child, for the healing notice
         self._nodes: dict[str, Node] = {}
         self._node_consoles: dict[int, _console.NodeConsole] = {}
         self._spinner: SpinThread | None = None
@@ -132,9 +135,9 @@ class CourseRuntime:
                 self._router.start()
                 self._log_reader = RosoutReader(
                     self.context, log_to_consoles(self._router),
-                    lambda exc: self._record_error(None, "the /rosout reader", exc))
+                    lambda exc: self._internal_error("the /rosout reader", exc))
             self._spinner = SpinThread(self.executor, "ros-executor",
-                                       lambda exc: self._record_error(None, "the executor", exc),
+                                       lambda exc: self._internal_error("the executor", exc),
                                        on_exit=lambda: self._router.enter(None)).start()
             self._active = True
             self._started_at = time.monotonic()
@@ -164,6 +167,7 @@ class CourseRuntime:
             if self.context is not None and self.context.ok():
                 self.context.try_shutdown()
             self._router.stop()
+            self.origins.clear()
 
     def restart(self, executor: str | None = None) -> CourseRuntime:
         """Stop and start again (optionally switching to the 'single' or 'multi' executor)."""
@@ -175,17 +179,17 @@ class CourseRuntime:
         return self.start()
 
     def _heal(self) -> None:
-        """The context was shut down from outside: stop everything left, start again, say so."""
-        self.stop()
+        """The context was shut down from outside: stop everything left, start again, and say in
+        one line which cells to run again."""
         handler = ""
         if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
             uninstall_signal_handlers()
-            handler = ("rclpy's signal handler has been removed again, so the interrupt button "
-                       "stops only the cell; use rt.add(...) instead of rclpy.init()/rclpy.spin() "
-                       "to keep it that way.")
+            handler = HANDLER_REMOVED
+        notice = self.origins.healed_notice(list(self._nodes), list(self.children()), handler)
+        self.stop()
         self.restarts += 1
         self.start()
-        print(HEALED_MESSAGE.format(handler=handler).strip(), flush=True)
+        print(notice, flush=True)
 
     def _ensure_running(self) -> None:
         if not self.running:
@@ -246,6 +250,7 @@ class CourseRuntime:
             node = self._nodes.pop(fqn, None)
         if node is None:
             return False
+        self.origins.forget_node(fqn)
         self._destroy(node)
         return True
 
@@ -275,6 +280,7 @@ class CourseRuntime:
         fqn = node.get_fully_qualified_name()
         with self._lock:
             self._nodes[fqn] = node
+            self.origins.node_added(fqn)
             if self._in_kernel:
                 show = console is None or bool(console)
                 self._node_consoles[id(node)] = self._router.open(node.get_logger().name, fqn, show=show)
@@ -309,10 +315,23 @@ class CourseRuntime:
         return self._spinner is not None and threading.current_thread() is self._spinner.thread
 
     # ------------------------------------------------------------------ child processes (core/spawning.py)
-    spawn = _children_method(ChildNodes.spawn)
+    @functools.wraps(ChildNodes.spawn)
+    def spawn(self, name: str, *args, **kwargs) -> processes.ChildProcess:
+        self.origins.child_started(name)  # first: a child whose wait fails still runs
+        return self._children.spawn(name, *args, **kwargs)
+
+    @functools.wraps(ChildNodes.stop_children)
+    def stop_children(self, names) -> dict[str, int | None]:
+        names = list(names)
+        for name in names:
+            self.origins.forget_child(name)
+        return self._children.stop_children(names)
+
+    def stop_child(self, name: str) -> int | None:
+        """Stop a child process by name (SIGTERM, then SIGKILL); returns its exit code."""
+        return self.stop_children([name]).get(name)
+
     wait_for_child_node = _children_method(ChildNodes.wait_for_child_node)
-    stop_child = _children_method(ChildNodes.stop_child)
-    stop_children = _children_method(ChildNodes.stop_children)
     children = _children_method(ChildNodes.children)
 
     # ------------------------------------------------------------------ waiting
@@ -412,34 +431,25 @@ class CourseRuntime:
 
     # ------------------------------------------------------------------ status
     def status(self) -> dict:
-        """Versions, middleware, domain, discovery range, nodes and child processes."""
+        """Versions, middleware, domain, discovery range, nodes, child processes, and the other
+        notebooks of this Jupyter server that run ROS (:func:`.status.status_of`)."""
         self._ensure_running()
-        return {
-            "rclpy": rclpy_version(),
-            "rmw": rclpy.get_rmw_implementation_identifier(),
-            "domain_id": self.domain.domain_id,
-            "domain_chosen_by": self.domain.source,
-            "discovery_range": os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"),
-            "executor": ("SingleThreadedExecutor" if self.executor_kind == "single"
-                         else "MultiThreadedExecutor"),
-            "nodes": self.nodes(),
-            "children": {n: (c.pid, "running" if c.alive else f"exited {c.returncode}")
-                         for n, c in self.children().items()},
-            "callback_errors": len(self.errors),
-        }
+        return status_of(self)
 
     def show_status(self) -> None:
         """Print :meth:`status` as an aligned table."""
-        for key, value in self.status().items():
-            if isinstance(value, list):
-                value = ", ".join(value) or "(none)"
-            elif isinstance(value, dict):
-                value = ", ".join(f"{n} (pid {p}, {s})" for n, (p, s) in value.items()) or "(none)"
-            print(f"{key:<18} {value}")
+        print(status_table(self.status()))
 
     def _record_error(self, console, where: str, exc: BaseException) -> None:
+        """A node's callback raised: its traceback goes to the node's console (or the cell's output)."""
         self.errors.append(f"{where}: {type(exc).__name__}: {exc}")
         self._router.write_error(console, where, exc)
+
+    def _internal_error(self, where: str, exc: BaseException) -> None:
+        """The runtime's own thread ('the executor', 'the /rosout reader') failed: one line for the
+        student, the traceback in :data:`INTERNAL_ERRORS_LOG` in :attr:`log_dir`."""
+        self.errors.append(f"{where}: {type(exc).__name__}: {exc}")
+        self._router.write_internal_error(where, exc, os.path.join(self.log_dir, INTERNAL_ERRORS_LOG))
 
 
 def _check_executor(kind) -> None:
