@@ -3,7 +3,9 @@ item 6), with real kernels: both are children of this test process, as a server'
 
 from __future__ import annotations
 
+import ast
 import os
+import signal
 import subprocess
 import sys
 
@@ -86,30 +88,51 @@ for domain in range(101, 0, -1):
     time.sleep(60)
 """
 
+# A holder that is not a sibling (as a kernel of another Jupyter server): a child of a child.
+HOLD_ONE_LEVEL_DOWN = f"""
+import subprocess, sys
+holder = subprocess.Popen([sys.executable, '-c', {HOLD_A_DOMAIN!r}], stdout=subprocess.PIPE, text=True)
+print(holder.pid, holder.stdout.readline().strip(), flush=True)
+holder.wait()
+"""
+
 ASK = """
 from course_helpers.core.other_kernels import other_kernels
 print([kernel.describe() for kernel in other_kernels()])
+print(sorted(kernel.pid for kernel in other_kernels(machine_wide=True)))
 """
 
 
 def test_only_this_users_processes_of_the_same_parent_count():
     """Siblings that hold a course domain count (named 'a process' without a notebook or a kernel);
-    another user's process holding one does not, whatever it holds."""
-    started = [subprocess.Popen([sys.executable, "-c", HOLD_A_DOMAIN], stdout=subprocess.PIPE, text=True)]
+    machine-wide, this user's holders further away count too (kernels of other Jupyter servers);
+    another user's process holding one never does, whatever it holds."""
+    started = [subprocess.Popen([sys.executable, "-c", HOLD_A_DOMAIN], stdout=subprocess.PIPE, text=True),
+               subprocess.Popen([sys.executable, "-c", HOLD_ONE_LEVEL_DOWN], stdout=subprocess.PIPE,
+                                text=True)]
     foreign = None
     if os.getuid() == 0:  # only root can start a process of another user next to its own
         foreign = subprocess.Popen(["/usr/bin/python3", "-c", HOLD_A_DOMAIN_BARE], stdout=subprocess.PIPE,
                                    text=True, user="nobody", cwd="/")
         started.append(foreign)
+    further = None
     try:
-        domains = [int(proc.stdout.readline()) for proc in started]
+        domains = [proc.stdout.readline().split() for proc in started]
+        further = int(domains[1][0])  # the holder below the second process
         asked = subprocess.run([sys.executable, "-c", ASK], capture_output=True, text=True, timeout=60)
         assert asked.returncode == 0, asked.stderr
-        expected = f"['a process (pid {started[0].pid} in domain {domains[0]})']"
-        assert asked.stdout.strip() == expected, (asked.stdout, domains)
+        same_server, machine_wide = asked.stdout.strip().splitlines()
+        expected = f"['a process (pid {started[0].pid} in domain {domains[0][0]})']"
+        assert same_server == expected, (asked.stdout, domains)
+        machine = set(ast.literal_eval(machine_wide))
+        assert {started[0].pid, further} <= machine, (machine_wide, started[0].pid, further)
+        assert started[1].pid not in machine  # it holds no domain itself
         if foreign is None:
             pytest.skip("not root: no process of another user to check (the rest passed)")
+        assert foreign.pid not in machine, (machine_wide, foreign.pid)
     finally:
+        if further is not None:
+            os.kill(further, signal.SIGKILL)
         for proc in started:
             proc.kill()
             proc.wait(timeout=10)

@@ -26,20 +26,27 @@ PRESET = "best-effort vs reliable under load"
 # processes and a logger, a cmd_vel and an IMU publisher; then the start of the cell that runs the
 # ten-topic sensor array (a child at 100 Hz per topic) and its listener, which the cell later stops.
 CH03_CELLS = ("c02", "c03", "c05", "c12", "c15")
-SENSOR_ARRAY = ("c50", "before = ")  # the cell, and where to cut it (before it measures and stops)
+SENSOR_ARRAY = ("c50", "counted = ")  # the cell, and where to cut it (before it measures and stops)
+
+
+def ch03_busy_cells() -> list[str]:
+    """The code of chapter 03's cells above, the sensor array's cut before its measurement."""
+    notebook = nbformat.read(os.path.join(REPO, "notebooks", "03_topics.ipynb"), as_version=4)
+    sources = {cell.get("id"): cell.source for cell in notebook.cells}
+    cell, cut = SENSOR_ARRAY
+    assert cut in sources[cell], f"03's cell {cell} no longer has {cut!r}: update SENSOR_ARRAY"
+    return [sources[c] for c in CH03_CELLS] + [sources[cell].split(cut)[0]]
 
 
 @pytest.fixture
 def busy_machine():
     """A CPU-bound process and another course kernel running chapter 03's nodes: yields
     (the kernel's PID, the PIDs of its child processes)."""
-    notebook = nbformat.read(os.path.join(REPO, "notebooks", "03_topics.ipynb"), as_version=4)
-    sources = {cell.get("id"): cell.source for cell in notebook.cells}
+    cells = ch03_busy_cells()
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     kernel = KernelSession(cwd=os.path.join(REPO, "notebooks"))
     try:
-        cell, cut = SENSOR_ARRAY
-        for code in [sources[c] for c in CH03_CELLS] + [sources[cell].split(cut)[0]]:
+        for code in cells:
             _out, error = kernel.run(code, timeout=120)
             assert error is None, f"chapter 03's cell failed: {error}\n{code}"
         out, error = kernel.run("print(sorted(child.pid for child in rt.children().values()))")

@@ -1,4 +1,4 @@
-"""The other notebooks of the same Jupyter server that run ROS, and the line that names them.
+"""The other course kernels of this user, and the line that names those of the same Jupyter server.
 
 Each notebook open in JupyterLab has a kernel of its own, and a course kernel's nodes and child
 processes run until that kernel is shut down, whichever notebook the student is looking at. They
@@ -8,16 +8,18 @@ they are shut down. So when a runtime starts in a notebook it names them in one 
 
 What counts as one, decided only by what another user cannot forge:
 
-* a process of this user started by the same parent as this kernel: the kernels of one Jupyter
-  server (or of one JupyterHub single-user server) are all its children, as the Running panel
-  lists them;
+* a process of this user other than this one,
 * that holds a course domain's reservation (:mod:`.domains`), which a course runtime takes when it
-  starts, and holds until its process exits.
+  starts, and holds until its process exits;
+* started by the same parent as this kernel (:func:`other_kernels`'s default): the kernels of one
+  Jupyter server (or of one JupyterHub single-user server) are all its children, as the Running
+  panel lists them. With ``machine_wide=True`` the kernels of every other server and test process
+  of this user count too: what competes with a measurement for the CPU (the QoS lab's busy note).
 
 Its notebook's name comes from ``JPY_SESSION_NAME``, which the Jupyter server sets for each
 kernel; its child processes are its children whose ``COURSE_PARENT_PID`` names it (the process layer
-sets it). Kernels of other servers do not count: the nbval kernels of parallel test workers, for
-one, are each a child of its own worker.
+sets it). In the default scope, kernels of other servers do not count: the nbval kernels of
+parallel test workers, for one, are each a child of its own worker.
 """
 
 from __future__ import annotations
@@ -38,30 +40,35 @@ class OtherKernel:
     pid: int
     name: str  # its notebook's file name; 'a kernel' or 'a process' if its server did not say
     domains: tuple[int, ...]  # the course domains it holds
-    children: int  # course child processes it runs
+    children: tuple[int, ...]  # PIDs of the course child processes it runs
 
     def describe(self) -> str:
         """'03_topics.ipynb (pid 4242 in domain 17 with 2 child processes)'."""
         domains = f"domain{'s' if len(self.domains) > 1 else ''} {' and '.join(map(str, self.domains))}"
         text = f"{self.name} (pid {self.pid} in {domains}"
-        if self.children:
-            text += f" with {self.children} child process{'es' if self.children > 1 else ''}"
+        count = len(self.children)
+        if count:
+            text += f" with {count} child process{'es' if count > 1 else ''}"
         return text + ")"
 
 
-def other_kernels() -> list[OtherKernel]:
-    """The other course kernels started by this process's parent (its Jupyter server), by PID."""
+def other_kernels(machine_wide: bool = False) -> list[OtherKernel]:
+    """The other course kernels of this user, by PID: those started by this process's parent (its
+    Jupyter server), or with ``machine_wide`` those of every server and test process on the machine."""
     import psutil
 
     me = psutil.Process()
-    try:
-        parent = me.parent()
-        siblings = parent.children() if parent is not None else []
-    except psutil.Error:
-        return []
+    if machine_wide:
+        candidates = psutil.process_iter()
+    else:
+        try:
+            parent = me.parent()
+            candidates = parent.children() if parent is not None else []
+        except psutil.Error:
+            return []
     uid = os.getuid()
     found = []
-    for proc in siblings:
+    for proc in candidates:
         if proc.pid == me.pid:
             continue
         try:
@@ -72,8 +79,8 @@ def other_kernels() -> list[OtherKernel]:
                 continue
             name = (os.path.basename(proc.environ().get(SESSION_ENV, ""))
                     or ("a kernel" if any("ipykernel" in part for part in proc.cmdline()) else "a process"))
-            children = sum(1 for child in proc.children() if _started_by(child, proc.pid))
-        except psutil.Error:  # it ended while we looked
+            children = tuple(sorted(child.pid for child in proc.children() if _started_by(child, proc.pid)))
+        except psutil.Error:  # it ended while we looked, or may not be inspected
             continue
         found.append(OtherKernel(proc.pid, name, tuple(domains), children))
     return sorted(found, key=lambda kernel: kernel.pid)

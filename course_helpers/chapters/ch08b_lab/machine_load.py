@@ -6,10 +6,9 @@ the CPU. The meter records, over a run,
 * the CPU time every **other** process used (the machine's busy time minus this kernel's own,
   its reaped child processes included), in cores: 1.0 is one core kept busy the whole run;
 * the 1-minute load average per core at the end;
-* the **other course processes of this user**: processes that hold a course ROS domain (other
-  notebooks' kernels, test workers; each holds an abstract socket ``@ros2-course-domain-N``) and
-  the child processes course kernels started (their environment names their kernel in
-  ``COURSE_PARENT_PID``). This kernel and its own children are left out.
+* the **other course kernels of this user**, of any Jupyter server or test process on the
+  machine, and their child processes (:func:`course_helpers.core.other_kernels.other_kernels`,
+  machine-wide). This kernel and its own children are left out.
 
 ``MachineLoad.busy`` is True when other processes kept at least ``BUSY_CORES`` cores busy, or the
 load average is at least ``BUSY_LOAD_PER_CORE`` per core; ``describe()`` says so in one line, with
@@ -24,8 +23,7 @@ from dataclasses import dataclass
 
 import psutil
 
-from course_helpers.core.domains import SOCKET_PREFIX
-from course_helpers.core.processes import PARENT_ENV
+from course_helpers.core.other_kernels import other_kernels
 
 BUSY_CORES = 0.5  # other processes used at least half a core on average during the run
 BUSY_LOAD_PER_CORE = 1.0  # or more runnable processes than cores, over the last minute
@@ -39,7 +37,7 @@ class MachineLoad:
     seconds: float  # the run's wall time over which ``others_cores`` was measured
     others_cores: float  # CPU time of every other process / seconds (1.0 = one core busy)
     load_per_core: float  # 1-minute load average / cores, at the end of the run
-    kernels: tuple[int, ...] = ()  # PIDs of other course kernels (processes holding a course domain)
+    kernels: tuple[int, ...] = ()  # PIDs of other course kernels of this user (holding a course domain)
     children: tuple[int, ...] = ()  # PIDs of other course kernels' child processes
 
     @property
@@ -85,9 +83,11 @@ class LoadMeter:
         seconds = max(time.monotonic() - self.started, 1e-3)
         others = max(0.0, (_machine_busy_seconds() - self._busy0) - (_own_seconds() - self._own0))
         cores = psutil.cpu_count() or 1
-        kernels, children = other_course_processes()
+        kernels = other_kernels(machine_wide=True)  # of every Jupyter server: all compete for the CPU
         return MachineLoad(cores=cores, seconds=seconds, others_cores=others / seconds,
-                           load_per_core=os.getloadavg()[0] / cores, kernels=kernels, children=children)
+                           load_per_core=os.getloadavg()[0] / cores,
+                           kernels=tuple(kernel.pid for kernel in kernels),
+                           children=tuple(sorted(pid for kernel in kernels for pid in kernel.children)))
 
 
 def _machine_busy_seconds() -> float:
@@ -100,34 +100,3 @@ def _own_seconds() -> float:
     """CPU seconds of this process, its threads and its reaped children."""
     times = psutil.Process().cpu_times()
     return times.user + times.system + times.children_user + times.children_system
-
-
-def other_course_processes() -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """(PIDs holding a course ROS domain, PIDs of course kernels' children), this kernel's own left out.
-
-    Only processes this user may inspect are seen (another user's are not this user's concern).
-    """
-    me = os.getpid()
-    holders = set()
-    try:
-        for connection in psutil.net_connections(kind="unix"):
-            address = connection.laddr
-            if isinstance(address, bytes):
-                address = address.decode(errors="replace").replace("\0", "@", 1)
-            if connection.pid and address and address.lstrip("@\0").startswith(SOCKET_PREFIX):
-                holders.add(connection.pid)
-    except psutil.Error:
-        pass
-    holders.discard(me)
-    uid = os.getuid()
-    children = set()
-    for process in psutil.process_iter(["uids"]):
-        try:
-            if process.pid == me or process.info["uids"] is None or process.info["uids"].real != uid:
-                continue
-            parent = process.environ().get(PARENT_ENV)
-        except psutil.Error:
-            continue
-        if parent and parent != str(me) and process.pid not in holders:
-            children.add(process.pid)
-    return tuple(sorted(holders)), tuple(sorted(children))
