@@ -22,7 +22,7 @@ from .conftest import REPO
 TOOLS = Path(REPO) / "tools"
 sys.path.insert(0, str(TOOLS))
 
-from grading import handin, isolation, source, student_build  # noqa: E402, F401 (used by the test files)
+from grading import handin, isolation, results, source, student_build, verdict  # noqa: E402, F401
 from grading.handin import EXTRA_CELL as EXTRA  # noqa: E402, F401 (a cell the student added at the end)
 from grading.handin import grade_cells  # noqa: E402, F401
 from grading.source import BEGIN  # noqa: E402, F401
