@@ -18,7 +18,7 @@ XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade clean
+.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade grade-all clean
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -85,6 +85,13 @@ grade: setup
 	@test -n "$(SUBMISSIONS)" -a -n "$(ASSIGNMENT)" || \
 	    { echo "usage: make grade SUBMISSIONS=folder ASSIGNMENT=04_services"; exit 2; }
 	$(PY) tools/assignments.py grade $(SUBMISSIONS) --assignment $(ASSIGNMENT)
+
+# Maintainers: every assignment graded end to end with real nbgrader (about 25 minutes, so not part of
+# `make test`). Releases CHAPTERS (default: every chapter with a graded exercise) into build/grade-all,
+# grades each one's untouched starting code and then its reference, prints the table and each chapter's
+# time, and fails naming the chapter and exercise where a reference lost a point or a starting code kept all.
+grade-all: setup
+	$(PY) -u tools/assignments.py grade-all $(CHAPTERS)
 
 # Set-up and strict nbval from a fresh clone on every Python 3.10-3.13 found (PYTHON310=... or PATH).
 test-pythons:

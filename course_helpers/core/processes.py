@@ -368,6 +368,8 @@ def run(argv: list[str], *, env: dict | None = None, cwd: str | None = None, tim
     """
     full_env = _environment(env)
     full_env.pop(CHANNEL_ENV, None)
+    # the wrapper checks that its parent is this process: a PID inherited from whoever started this
+    # process (a graded kernel's grader) would make it exit 0 at once, having run nothing
     full_env[PARENT_ENV] = str(os.getpid())
 
     def fork() -> subprocess.Popen:
