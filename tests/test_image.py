@@ -8,14 +8,16 @@ the image's own user, jovyan (uid 1000), through its entrypoint:
 * an empty volume mounted over the working copy is filled at start, and a student's edit survives
   the next start;
 * strict nbval of every notebook (each run twice, as ``make notebooks`` does) passes inside it;
-* the default command serves JupyterLab, and Chromium on the host (Playwright, as the QoS lab's
+* the README's ``docker run`` line (port 8888 published, the work in a named volume) serves
+  JupyterLab at the address it prints, and Chromium on the host (Playwright, as the QoS lab's
   browser test) runs notebook 00 in it from a clean slate without an error;
 * a real JupyterHub starts the image as a student's server with ``jupyterhub-singleuser`` (Binder's
   and Zero to JupyterHub's command), which answers through the hub's proxy;
 * the ROS 1 packages and network tools a later chapter needs are installed.
 
 Needs the image's name in ``COURSE_IMAGE`` (``make test-image`` builds the image and sets it);
-skipped otherwise, with the reason. Containers share the host's network (engine.py says why).
+skipped otherwise, with the reason. Containers share the host's network (engine.py says why), except
+the README's own line, which publishes a port.
 """
 
 from __future__ import annotations
@@ -209,14 +211,16 @@ def _get(url: str, token: str | None = None):
 
 
 class Server:
-    """A detached container of the image serving on a free port of the host; stopped by ``stop()``."""
+    """A detached container of the image serving HTTP; stopped (and removed) by ``stop()``.
 
-    def __init__(self, engine: Engine, env: dict[str, str], *command: str):
+    ``options`` go to ``run`` before the image, ``{port}`` in them standing for a free port of the host.
+    """
+
+    def __init__(self, engine: Engine, options: list[str], *command: str):
         self.engine, self.port = engine, _free_port()
         self.name = f"course-image-test-{secrets.token_hex(4)}"
-        options = [f"--env={k}={v.format(port=self.port)}" for k, v in env.items()]
-        engine.call("run", "--detach", "--name", self.name, *engine.run_options(), *options, IMAGE,
-                    *command, check=True)
+        engine.call("run", "--detach", "--name", self.name, *[o.format(port=self.port) for o in options],
+                    IMAGE, *command, check=True)
 
     def wait_for(self, url: str, timeout: float = 90) -> None:
         def answers() -> bool:
@@ -233,7 +237,7 @@ class Server:
         return done.stdout + done.stderr
 
     def stop(self) -> int:
-        """Stop the container (SIGTERM, SIGKILL after 20 s); return its exit code."""
+        """Stop the container (SIGTERM, SIGKILL after 20 s), remove it; return its exit code."""
         self.engine.call("stop", "--time", "20", self.name, timeout=60)
         code = self.engine.call("inspect", "--format", "{{.State.ExitCode}}", self.name).stdout.strip()
         self.engine.call("rm", "--force", self.name)
@@ -242,28 +246,33 @@ class Server:
 
 @pytest.fixture(scope="module")
 def lab(engine):
-    """The image's default command, JupyterLab, on a free port with a known token.
-
-    Yields (base URL, token, Server); afterwards shuts its kernels down and stops it.
+    """The README's `docker run` line, detached: the image's default command (JupyterLab) on port 8888
+    published on the host's localhost, the working copy in a named volume, the token read from the log
+    as a user reads the address it prints. Yields (base URL, token, Server); afterwards shuts the kernels
+    down, stops the container and removes the volume.
     """
-    token = secrets.token_hex(16)
-    server = Server(engine, {"JUPYTER_TOKEN": token, "JUPYTER_PORT": "{port}"})
-    base = f"http://127.0.0.1:{server.port}"
+    volume = f"course-image-test-work-{secrets.token_hex(4)}"
+    server = Server(engine, [*engine.run_options(host_network=False), "--publish", "127.0.0.1:{port}:8888",
+                             "--volume", f"{volume}:{WORK}"])
+    base, token = f"http://127.0.0.1:{server.port}", None
     try:
         server.wait_for(f"{base}/api")
+        printed = re.search(r"http://127\.0\.0\.1:8888/lab\?token=(\w+)", server.logs())
+        assert printed, f"JupyterLab printed no address with its token:\n{server.logs()[-3000:]}"
+        token = printed.group(1)
         yield base, token, server
     finally:
         try:
-            status, _, body = _get(f"{base}/api/kernels", token)
+            status, _, body = _get(f"{base}/api/kernels", token) if token else (0, None, None)
             for kernel in json.loads(body) if status == 200 else []:
                 urllib.request.urlopen(urllib.request.Request(
                     f"{base}/api/kernels/{kernel['id']}", method="DELETE",
                     headers={"Authorization": f"token {token}"}), timeout=30)
-        except (OSError, ValueError):
-            pass
-        print(server.logs()[-2000:])
-        code = server.stop()
-        assert code != 137, "JupyterLab did not stop within 20 s of SIGTERM and was killed"
+        finally:
+            print(server.logs()[-2000:])
+            code = server.stop()
+            engine.call("volume", "rm", "--force", volume)
+    assert code != 137, "JupyterLab did not stop within 20 s of SIGTERM and was killed"
 
 
 def test_jupyterlab_answers_over_http(lab):

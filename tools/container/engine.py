@@ -11,9 +11,9 @@ engine's defaults fail, retries with the settings a restricted host needs:
 * hybrid cgroup hierarchies refuse crun, and a host without systemd has no systemd cgroup manager:
   ``--runtime runc --cgroup-manager cgroupfs`` (only when runc is installed).
 
-Builds and test containers share the host's network (``--network host``): the build reaches the
-package mirrors as the host does, and the course's ROS domain reservations (abstract Unix sockets,
-which belong to a network namespace) then hold across the host and the container alike.
+Builds and most test containers share the host's network (``--network host``): the build reaches
+the package mirrors as the host does, and the course's ROS domain reservations (abstract Unix
+sockets, which belong to a network namespace) then hold across the host and the container alike.
 Only the standard library: ``make image`` runs before any venv exists.
 """
 
@@ -49,9 +49,9 @@ class Engine:
         """The argv of ``ENGINE [global options] SUBCOMMAND ARGS``."""
         return [self.name, *self.global_options, subcommand, *args]
 
-    def run_options(self) -> list[str]:
-        """Options for ``run``: the host's network, and the limits this host needs."""
-        return ["--network", "host", *self.limits]
+    def run_options(self, host_network: bool = True) -> list[str]:
+        """Options for ``run``: the limits this host needs, and the host's network unless told not to."""
+        return [*(["--network", "host"] if host_network else []), *self.limits]
 
     def build_options(self) -> list[str]:
         """Options for ``build``: as for ``run``; Podman never asks a registry (the base is local)."""
