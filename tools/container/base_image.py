@@ -41,12 +41,17 @@ SLIM_REMOVED = ("usr/share/man", "usr/share/groff", "usr/share/info", "usr/share
                 "usr/share/linda", "var/cache/apt/archives", "var/lib/apt/lists")
 
 
-def debian_mirror() -> str:
-    """The Debian mirror apt uses here for the ``bookworm`` suite's main component."""
-    try:
-        policy = subprocess.run(["apt-cache", "policy"], capture_output=True, text=True, timeout=60).stdout
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        raise EngineError(f"cannot read apt's sources (apt-cache policy): {exc}") from exc
+def debian_mirror(policy: str | None = None) -> str:
+    """The Debian mirror apt uses for the ``bookworm`` suite's main component.
+
+    ``policy`` is the output of ``apt-cache policy`` (read from this machine when not given).
+    """
+    if policy is None:
+        try:
+            policy = subprocess.run(["apt-cache", "policy"], capture_output=True, text=True,
+                                    timeout=60).stdout
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise EngineError(f"cannot read apt's sources (apt-cache policy): {exc}") from exc
     # e.g. " 500 http://deb.debian.org/debian bookworm/main amd64 Packages"
     match = re.search(rf"^\s*\d+\s+(\S+)\s+{SUITE}/main\s", policy, re.MULTILINE)
     if not match:

@@ -108,29 +108,34 @@ def _answers(name: str) -> bool:
         return False
 
 
-def hard_limits() -> list[str]:
+def hard_limits(nofile: int | None = None, nproc: int | None = None, pid_max: int | None = None) -> list[str]:
     """``--ulimit`` options: open files and processes at this process's hard limits.
 
     The process limit is also capped at the kernel's highest PID (no more processes can exist): a
     sandboxed kernel refused an RLIMIT_NPROC above ``kernel.pid_max`` although the hard limit was higher.
+    The arguments stand in for this machine's values (read when not given; None when unlimited).
     """
+    def hard(limit: int) -> int | None:
+        value = resource.getrlimit(limit)[1]
+        return None if value == resource.RLIM_INFINITY else value
+
+    nofile = nofile if nofile is not None else hard(resource.RLIMIT_NOFILE)
+    nproc = nproc if nproc is not None else hard(resource.RLIMIT_NPROC)
+    pid_max = pid_max if pid_max is not None else _pid_max()
     options = []
-    for name, limit in (("nofile", resource.RLIMIT_NOFILE), ("nproc", resource.RLIMIT_NPROC)):
-        hard = resource.getrlimit(limit)[1]
-        caps = [] if hard == resource.RLIM_INFINITY else [hard]
-        if name == "nproc":
-            caps += _pid_max()
+    for name, caps in (("nofile", [nofile]), ("nproc", [nproc, pid_max])):
+        caps = [cap for cap in caps if cap is not None]
         if caps:
             options += ["--ulimit", f"{name}={min(caps)}:{min(caps)}"]
     return options
 
 
-def _pid_max() -> list[int]:
+def _pid_max() -> int | None:
     try:
         with open("/proc/sys/kernel/pid_max") as handle:
-            return [int(handle.read())]
+            return int(handle.read())
     except (OSError, ValueError):
-        return []
+        return None
 
 
 def find_engine() -> Engine:
