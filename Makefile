@@ -18,7 +18,8 @@ XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade grade-all clean
+.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade grade-all clean \
+        image test-image
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -96,6 +97,16 @@ grade-all: setup
 # Set-up and strict nbval from a fresh clone on every Python 3.10-3.13 found (PYTHON310=... or PATH).
 test-pythons:
 	$(PYTHON) tools/test_pythons.py
+
+# The course's container image (Dockerfile; Codespaces, Binder, Zero to JupyterHub, docker run) with
+# Docker or Podman, whichever works here; `make test-image` builds it and tests it as students use it
+# (tests/test_image.py), then prints its size and the seconds of each stage. tools/container/.
+IMAGE ?= ros2-course
+image:
+	$(PYTHON) -m tools.container.build_image --tag $(IMAGE)
+
+test-image: setup
+	$(PY) -m tools.container.run_image_tests --tag $(IMAGE) --jobs $(JOBS)
 
 # The course website from the committed notebooks (nothing executed, nothing downloaded).
 book: setup
