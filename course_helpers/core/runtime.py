@@ -123,6 +123,7 @@ class CourseRuntime(ChildProcesses):
             if self._in_kernel:
                 self._router.start()
                 self._log_reader = RosoutReader(self.context, self._on_log, self._log_reader_error)
+                self._router.sync_logs = self._log_reader.sync  # a cell's consoles are complete at its end
             self._spinner = SpinThread(self.executor, "ros-executor",
                                        lambda exc: self._record_error(None, "the executor", exc),
                                        on_exit=lambda: self._router.enter(None)).start()
@@ -143,6 +144,7 @@ class CourseRuntime(ChildProcesses):
                 self._destroy(self._nodes.pop(fqn))
             self._node_consoles.clear()
             if self._log_reader is not None:
+                self._router.sync_logs = None
                 self._log_reader.stop()
                 self._log_reader = None
             if self._internal is not None:
