@@ -201,7 +201,8 @@ class CourseRuntime(ChildProcesses):
         ``rt.add(Talker)``. The node is created in the runtime's context. If a node with the
         same full name is running, it is destroyed first, so re-running a cell replaces the
         node instead of duplicating it. In a notebook, the node's prints and logs appear in a
-        console under the cell (``console=False`` hides it).
+        console under the cell, and what it writes while a later cell runs under that cell
+        (``console=False`` hides them).
         """
         self._ensure_running()
         if isinstance(node_or_factory, Node):
