@@ -30,26 +30,17 @@ class KernelSession:
         self.displays: dict[str, dict] = {}  # display id -> its latest data (consoles update theirs)
         self.traceback: list[str] = []  # the last cell's error as a frontend shows it, line by line
         self.execution_count: int | None = None  # the In [N] number of the last cell run
-        self.display_cells: dict[str, str] = {}  # display id -> msg_id of the cell it was created under
-        self.cell_display_ids: list[str] = []  # the displays with an ID that the last cell created
-        self.cell_outputs: list[tuple[str, str]] = []  # the last cell's outputs: (kind, display id or "")
-        self.cell_streams = ""  # what the last cell printed (its stream outputs only)
-        self.cell_msg_id = ""  # the msg_id of the last cell's execute request
 
     def run(self, code: str, timeout: float = 60, interrupt_after: float | None = None):
         """Execute a cell; return (outputs, error) where outputs are stream/display texts.
 
         Displays with an ID (node consoles) are also kept in ``displays`` with their latest data,
-        whichever cell was running when they changed (``display_cells`` says under which cell each
-        was created); ``cell_display_ids`` lists the ones this cell created, in order, and
-        ``cell_streams`` is its printed text alone; ``cell_outputs`` lists its outputs in order.
-        The error's traceback lines are kept in ``traceback``, the cell's execution count in
-        ``execution_count``.
+        whichever cell was running when they changed. The error's traceback lines are kept in
+        ``traceback``, the cell's execution count in ``execution_count``.
         """
-        msg_id = self.cell_msg_id = self.client.execute(code)
+        msg_id = self.client.execute(code)
         outputs, error = [], None
         self.traceback, self.execution_count = [], None
-        self.cell_display_ids, self.cell_streams, self.cell_outputs = [], "", []
         deadline = time.monotonic() + timeout
         interrupt_at = time.monotonic() + interrupt_after if interrupt_after else None
         while True:
@@ -63,18 +54,16 @@ class KernelSession:
             except Exception:
                 continue
             kind, content = msg["msg_type"], msg["content"]
-            self._keep_display(msg)
+            if kind in ("display_data", "update_display_data"):
+                display_id = content.get("transient", {}).get("display_id")
+                if display_id:  # a display that later updates (a node console): keep its latest data
+                    self.displays[display_id] = content["data"]
             if msg["parent_header"].get("msg_id") != msg_id:
                 continue
-            if kind in ("stream", "display_data", "execute_result"):
-                self.cell_outputs.append((kind, content.get("transient", {}).get("display_id", "")))
             if kind == "stream":
                 outputs.append(content["text"])
-                self.cell_streams += content["text"]
             elif kind in ("display_data", "execute_result"):
                 outputs.append(content["data"].get("text/plain", ""))
-                if content.get("transient", {}).get("display_id"):
-                    self.cell_display_ids.append(content["transient"]["display_id"])
             elif kind == "error":
                 error = content["ename"]
                 self.traceback = list(content["traceback"])
@@ -82,24 +71,6 @@ class KernelSession:
                 self.execution_count = content["execution_count"]
             elif kind == "status" and content["execution_state"] == "idle":
                 return "".join(outputs), error
-
-    def listen(self, seconds: float) -> None:
-        """Read what the kernel sends for ``seconds`` while no cell runs (late console lines)."""
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            try:
-                self._keep_display(self.client.get_iopub_msg(timeout=0.1))
-            except Exception:
-                continue
-
-    def _keep_display(self, msg: dict) -> None:
-        """Keep the latest data of a display with an ID (a node console), and its cell."""
-        kind, content = msg["msg_type"], msg["content"]
-        display_id = content.get("transient", {}).get("display_id")
-        if kind in ("display_data", "update_display_data") and display_id:
-            self.displays[display_id] = content["data"]
-            if kind == "display_data":
-                self.display_cells[display_id] = msg["parent_header"].get("msg_id")
 
     def shutdown(self) -> tuple[int | None, str]:
         """Ask the kernel to shut down (as the Lab's 'Shut Down Kernel' does); (exit code, stderr)."""

@@ -14,7 +14,7 @@ plots or the ``%ros2`` magics.
   participants discover each other, and the shared-memory files old processes left behind;
 * ``netns``: private network namespaces whose processes are course children (a lossy link,
   two machines on one box);
-* ``console``, ``logs``: node consoles, each line under the cell during which the node wrote it;
+* ``console``, ``logs``: node consoles under the cell that started a node;
 * ``names``, ``validation``, ``qos_dict``, ``msg_yaml``, ``units``, ``versions``,
   ``errors``: small conversions and checks with errors a student can act on;
 * ``build_interfaces``: the rosidl build of the course's interface packages (set-up).

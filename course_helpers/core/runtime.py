@@ -136,7 +136,6 @@ class CourseRuntime:
                 self._log_reader = RosoutReader(
                     self.context, log_to_consoles(self._router),
                     lambda exc: self._internal_error("the /rosout reader", exc))
-                self._router.sync_logs = self._log_reader.sync  # a cell's consoles are complete at its end
             self._spinner = SpinThread(self.executor, "ros-executor",
                                        lambda exc: self._internal_error("the executor", exc),
                                        on_exit=lambda: self._router.enter(None)).start()
@@ -156,7 +155,6 @@ class CourseRuntime:
                 self._destroy(self._nodes.pop(fqn))
             self._node_consoles.clear()
             if self._log_reader is not None:
-                self._router.sync_logs = None
                 self._log_reader.stop()
                 self._log_reader = None
             if self._graph is not None:
@@ -214,8 +212,7 @@ class CourseRuntime:
         ``rt.add(Talker)``. The node is created in the runtime's context. If a node with the
         same full name is running, it is destroyed first, so re-running a cell replaces the
         node instead of duplicating it. In a notebook, the node's prints and logs appear in a
-        console under the cell, and what it writes while a later cell runs under that cell
-        (``console=False`` hides them).
+        console under the cell (``console=False`` hides it).
         """
         self._ensure_running()
         if isinstance(node_or_factory, Node):
