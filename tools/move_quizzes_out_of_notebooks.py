@@ -18,12 +18,18 @@ since gets step 3 only (its saved outputs refreshed from the file). Usage::
     .venv/bin/python tools/move_quizzes_out_of_notebooks.py                    # every notebook
     .venv/bin/python tools/move_quizzes_out_of_notebooks.py notebooks/03_topics.ipynb
 
-After merging a branch that changed a notebook still holding its quiz in code (a branch made
-before the quizzes moved out), keep that branch's notebook as it is, then::
+Merging this change into a branch whose notebooks still hold their quizzes in code (the other
+branch's notebooks win, then this script converts them)::
 
+    git merge quiz                                                 # notebooks changed on both sides conflict
+    git checkout --ours -- notebooks/NN_x.ipynb ...                # keep this branch's version of each
     .venv/bin/python tools/move_quizzes_out_of_notebooks.py        # converts what needs it, no more
     git diff course_helpers/notebook/quizzes/                      # a quiz the branch changed shows here
     .venv/bin/python -m pytest tests/test_quiz_answers_hidden.py tests/test_quiz_and_checks.py -q
+    git add notebooks course_helpers/notebook/quizzes && git commit
+
+A notebook that merged without a conflict is checked too, and reported unchanged when its quiz cell
+is current.
 
 The rest of the notebook keeps its saved outputs, so it needs no re-execution: only the quiz cell's
 output changed, and this script produced it. Strict nbval of the notebook should pass as it is.
