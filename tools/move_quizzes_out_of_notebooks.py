@@ -181,11 +181,12 @@ def convert(path: Path) -> list[str]:
     for model in stale:
         del state[model]
     state.update(new_models)
+    what = "outputs refreshed from the quiz file" if cell.source == source else "converted"
     cell.source = source
     cell.outputs = outputs
     nbformat.validate(notebook)
     nbformat.write(notebook, path)
-    return done + [f"quiz cell converted and re-run alone ({len(stale)} old widget models replaced "
+    return done + [f"quiz cell {what}, re-run alone ({len(stale)} old widget models replaced "
                    f"by {len(new_models)})"]
 
 
