@@ -2,9 +2,10 @@
 
 Builds the site from the committed notebooks, serves it from a local HTTP server, and visits the
 landing page and every chapter in headless Debian Chromium driven by Playwright. Each page must
-have its title, every image must have loaded (natural width > 0), and every internal link must
-answer. Screenshots of the landing page, 08b and 10 go to ``tests/artifacts/``. Skipped when
-Chromium is missing (Playwright never downloads a browser here).
+have its title, every image must have loaded (natural width > 0), every internal link must
+answer, and each chapter's quiz must show its answers under "Questions and answers".
+Screenshots of the landing page, 08b and 10 go to ``tests/artifacts/``. Skipped when Chromium is
+missing (Playwright never downloads a browser here).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ import urllib.request
 from functools import partial
 
 import pytest
+
+from course_helpers.notebook.quiz import Quiz
 
 from .conftest import REPO
 
@@ -112,12 +115,31 @@ def test_every_chapter_page_has_its_title_images_and_working_links(site):
                         checked_links.add(target)
                         if not _answers(target):
                             problems.append(f"{name}: broken link {target}")
+                if name != "index":
+                    problems += _quiz_answers_shown(page, name)
                 if name in SCREENSHOTS:
                     page.screenshot(path=os.path.join(ARTIFACTS, SCREENSHOTS[name]), full_page=False)
         finally:
             browser.close()
     assert not problems, "\n".join(problems)
     assert len(checked_links) > len(CHAPTERS)  # the navigation links every chapter
+
+
+def _quiz_answers_shown(page, name: str) -> list[str]:
+    """The chapter's quiz on its page: "Questions and answers" opens on every question with its right
+    answers marked (the notebook itself shows none; tools/build_book.py puts them in)."""
+    quiz = Quiz.load(name)
+    details = page.locator("main details", has=page.locator("summary", has_text="Questions and answers"))
+    if details.count() != 1:
+        return [f"{name}: {details.count()} 'Questions and answers' sections, expected one"]
+    details.locator("summary").click()
+    shown = details.inner_text()
+    right = [c.text for q in quiz.questions for c in q.choices if c.correct]
+    problems = [f"{name}: the answer {text!r} is not marked right" for text in right
+                if f"\u2714 {text}" not in shown]
+    if shown.count("\u2714") != len(right):
+        problems.append(f"{name}: {shown.count(chr(0x2714))} answers marked right, expected {len(right)}")
+    return problems
 
 
 def _site_shows_static_records_not_widget_reprs():

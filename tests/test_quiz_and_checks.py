@@ -50,6 +50,79 @@ def test_a_quiz_needs_questions_and_choices_of_the_right_kind():
         Quiz("Bad", ["not a question"])
 
 
+# A quiz file with one mistake each, and what the error must name.
+GOOD_QUESTION = """
+  - prompt: Which command lists topics?
+    choices:
+      - text: ros2 node list
+        feedback: That lists nodes.
+      - text: ros2 topic list
+        correct: true
+        feedback: Right.
+"""
+BAD_QUIZ_FILES = {
+    "not YAML": ("title: [unclosed\n", "bad.yaml is not valid YAML"),
+    "a list": ("- title: x\n", "bad.yaml: the file must be a mapping with the keys title, questions"),
+    "no title": ("questions:" + GOOD_QUESTION, "bad.yaml: the file: missing title"),
+    "an unknown key": ("title: T\nanswers: []\nquestions:" + GOOD_QUESTION,
+                       "bad.yaml: the file: unknown answers (the keys are title, questions)"),
+    "questions not a list": ("title: T\nquestions: 3\n", "bad.yaml: the file: 'questions' must be list"),
+    "an empty quiz": ("title: T\nquestions: []\n", "bad.yaml: quiz 'T' needs at least one question"),
+    "a question without choices": ("title: T\nquestions:\n  - prompt: P?\n",
+                                   "bad.yaml: question 1: missing choices"),
+    "an empty prompt": ("title: T\nquestions:" + GOOD_QUESTION.replace("Which command lists topics?", "''"),
+                        "bad.yaml: question 1: 'prompt' must be non-empty text, got ''"),
+    "a choice with a typo": ("title: T\nquestions:" + GOOD_QUESTION.replace("correct: true", "corect: true"),
+                             "bad.yaml: question 1, choice 2: unknown corect"),
+    "correct: yes-ish": ("title: T\nquestions:" + GOOD_QUESTION.replace("correct: true", "correct: 'yes'"),
+                         "bad.yaml: question 1, choice 2: 'correct' must be true or false, got 'yes'"),
+    "no feedback": ("title: T\nquestions:" + GOOD_QUESTION.replace("        feedback: Right.\n", ""),
+                    "bad.yaml: question 1, choice 2: missing feedback"),
+    "no correct choice": ("title: T\nquestions:" + GOOD_QUESTION.replace("        correct: true\n", ""),
+                          "bad.yaml: question 'Which command lists topics?' has no correct choice"),
+    "one choice": ("title: T\nquestions:" + GOOD_QUESTION.split("      - text: ros2 topic list")[0]
+                   .replace("feedback: That lists nodes.", "correct: true\n        feedback: x"),
+                   "bad.yaml: question 'Which command lists topics?' needs at least 2 choices"),
+}
+
+
+def test_a_good_quiz_file_loads(tmp_path):
+    path = tmp_path / "good.yaml"
+    path.write_text("title: T\nquestions:" + GOOD_QUESTION)
+    quiz = Quiz.from_file(path)
+    assert quiz.name == "good" and quiz.title == "T"
+    assert quiz.questions == [Question("Which command lists topics?", [
+        Choice("ros2 node list", False, "That lists nodes."), Choice("ros2 topic list", True, "Right.")])]
+    assert Quiz.from_dict(quiz.to_dict()) == Quiz("T", quiz.questions)
+
+
+@pytest.mark.parametrize("mistake", list(BAD_QUIZ_FILES))
+def test_a_quiz_file_with_a_mistake_gets_an_error_naming_the_file_and_the_mistake(tmp_path, mistake):
+    text, message = BAD_QUIZ_FILES[mistake]
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(CourseError) as error:
+        Quiz.from_file(path)
+    assert str(error.value).startswith(message), str(error.value)
+
+
+@pytest.mark.parametrize("name", ["nope", "../quiz", "03_topics.yaml", None])
+def test_loading_a_quiz_that_does_not_exist_names_the_ones_that_do(name):
+    with pytest.raises(CourseError, match=r"there is no quiz named .*; the course's quizzes are "
+                                          r"00_welcome, 01_architecture, .*10_capstone$"):
+        Quiz.load(name)
+    with pytest.raises(CourseError, match="cannot read the quiz file"):
+        Quiz.from_file("/nonexistent/quiz.yaml")
+
+
+def test_every_quiz_file_belongs_to_a_notebook_and_every_notebook_has_one():
+    notebooks = {os.path.splitext(os.path.basename(p))[0]
+                 for p in glob.glob(os.path.join(os.path.dirname(__file__), "..", "notebooks", "*.ipynb"))}
+    assert set(Quiz.names()) == notebooks
+    for name in Quiz.names():
+        assert Quiz.load(name).name == name
+
+
 def test_answer_returns_the_choice_with_its_feedback_and_grade_counts():
     quiz = make_quiz()
     assert quiz.grade() == (0, 2)
@@ -72,29 +145,43 @@ def test_answer_rejects_out_of_range_picks(question, choice):
     assert quiz.grade() == (0, 2)
 
 
-def test_as_text_marks_the_correct_answers():
+def test_as_text_lists_the_questions_and_choices_without_marking_an_answer():
     text = make_quiz().as_text()
     assert text.splitlines() == [
         "Quiz: Chapter 01 <graph> (2 questions)",
+        "Run this cell to answer: each click says whether you are right, and why. The answers are on "
+        "the course website, under this chapter's quiz.",
         "1. Which process must run before ROS 2 nodes can find each other?",
-        "   [ ] roscore",
-        "   [x] None: discovery is peer to peer",
+        "   - roscore",
+        "   - None: discovery is peer to peer",
         "2. What does a topic carry?",
-        "   [ ] Requests & replies",
-        "   [x] Messages of one type",
-        "   [ ] Goals with feedback",
+        "   - Requests & replies",
+        "   - Messages of one type",
+        "   - Goals with feedback",
     ]
 
 
-def test_as_html_contains_every_question_choice_and_feedback_escaped():
+def test_as_html_shows_questions_and_choices_escaped_but_no_answer_and_no_feedback():
     quiz = make_quiz()
     page = quiz.as_html()
     assert "Chapter 01 &lt;graph&gt;" in page and "<graph>" not in page
     for question in quiz.questions:
         assert html.escape(question.prompt) in page
         for choice in question.choices:
-            assert html.escape(choice.text) in page
-            assert html.escape(choice.feedback) in page
+            assert f"<li>{html.escape(choice.text)}</li>" in page  # every choice drawn alike
+            assert html.escape(choice.feedback) not in page
+    assert "&#10004;" not in page and "&#10008;" not in page and "answers are on the course website" in page
+
+
+def test_answers_html_marks_the_correct_answers_with_every_feedback_escaped():
+    quiz = make_quiz()
+    page = quiz.answers_html()
+    assert "Chapter 01 &lt;graph&gt;" in page and "<summary>Questions and answers</summary>" in page
+    for question in quiz.questions:
+        assert html.escape(question.prompt) in page
+        for choice in question.choices:
+            mark = "&#10004;" if choice.correct else "&#10008;"
+            assert f"{mark} {html.escape(choice.text)}<br><small>{html.escape(choice.feedback)}" in page
     assert page.count("&#10004;") == 2  # one correct answer per question
     assert page.count("&#10008;") == 3
 
@@ -136,13 +223,21 @@ def test_long_choices_are_shortened_on_buttons_with_the_full_text_as_tooltip():
     assert button.tooltip == long_text
 
 
-def test_the_display_bundle_has_text_html_and_a_widget():
-    from IPython.core.formatters import DisplayFormatter  # noqa: F401 (IPython is installed)
+def test_a_displayed_quiz_has_text_html_a_widget_and_its_name_in_the_metadata():
+    from IPython.core.interactiveshell import InteractiveShell
+    from IPython.utils.capture import capture_output
 
-    quiz = make_quiz()
-    bundle = {"text/plain": quiz.as_text(), "text/html": quiz.as_html(), **quiz._widget_bundle()}
-    assert "application/vnd.jupyter.widget-view+json" in bundle
-    assert bundle["text/plain"].startswith("Quiz: Chapter 01")
+    InteractiveShell.instance()  # a shell to display into, as in a kernel
+    quiz = Quiz.load("03_topics")
+    with capture_output() as captured:
+        quiz.show()
+    (shown,) = captured.outputs
+    assert shown.metadata == {"ros2_course": {"quiz": "03_topics"}}
+    assert shown.data["text/plain"] == quiz.as_text() and shown.data["text/html"] == quiz.as_html()
+    assert "application/vnd.jupyter.widget-view+json" in shown.data
+    with capture_output() as captured:
+        make_quiz().show()  # built in code: no file name to record
+    assert not captured.outputs[0].metadata
 
 
 # ---------------------------------------------------------------------- checks
@@ -225,17 +320,25 @@ def test_pretty_printing_uses_the_summary():
 
 
 def test_every_chapter_notebook_has_a_quiz_that_ran():
-    """Each chapter (01 onwards, the lab 08b included) has a quiz cell that runs without error."""
-    notebooks = sorted(glob.glob(os.path.join(os.path.dirname(__file__), "..", "notebooks", "[01]*.ipynb")))
-    chapters = [p for p in notebooks if not os.path.basename(p).startswith("00_")]
-    assert len(chapters) >= 11
-    for path in chapters:
+    """Each notebook (00 and every chapter, the lab 08b included) has a short quiz cell loading its own
+    quiz file, and its saved output is what that file gives today: the quiz ran, with no error."""
+    notebooks = sorted(glob.glob(os.path.join(os.path.dirname(__file__), "..", "notebooks", "*.ipynb")))
+    assert len(notebooks) >= 12
+    for path in notebooks:
+        name = os.path.splitext(os.path.basename(path))[0]
         with open(path, encoding="utf-8") as handle:
-            cells = json.load(handle)["cells"]
-        quiz_cells = [c for c in cells if c["cell_type"] == "code" and "Quiz(" in "".join(c["source"])]
-        assert quiz_cells, f"{os.path.basename(path)} has no quiz"
-        outputs = quiz_cells[-1].get("outputs", [])
-        assert outputs and all(o["output_type"] != "error" for o in outputs), os.path.basename(path)
+            notebook = json.load(handle)
+        cells = [c for c in notebook["cells"] if c["cell_type"] == "code" and "Quiz" in "".join(c["source"])]
+        assert len(cells) == 1, f"{name} has {len(cells)} quiz cells, expected one"
+        assert "".join(cells[0]["source"]).splitlines()[-1] == f'Quiz.load("{name}")', name
+        outputs = cells[0].get("outputs", [])
+        assert outputs and all(o["output_type"] != "error" for o in outputs), name
+        (shown,) = [o for o in outputs if o.get("metadata", {}).get("ros2_course", {}).get("quiz") == name]
+        quiz = Quiz.load(name)
+        assert "".join(shown["data"]["text/plain"]) == quiz.as_text(), f"{name}: re-run its quiz cell"
+        assert "".join(shown["data"]["text/html"]) == quiz.as_html(), f"{name}: re-run its quiz cell"
+        saved = notebook["metadata"]["widgets"]["application/vnd.jupyter.widget-state+json"]["state"]
+        assert shown["data"]["application/vnd.jupyter.widget-view+json"]["model_id"] in saved, name
 
 
 def _environment_criteria(env_changes: dict[str, str | None]) -> dict[str, bool]:

@@ -5,16 +5,23 @@ executed and nothing is downloaded. Sphinx needs its sources in one folder, so t
 stages ``book/`` (configuration and landing page) with ``notebooks/*.ipynb`` in build/book_src and
 builds from there. Open build/book/html/index.html, or serve the folder:
 ``python -m http.server -d build/book/html``.
+
+The one change to the staged copies: a notebook's saved quiz shows its questions without answers
+(students should answer first), so on the site each quiz output shows the quiz file's questions
+with their answers and feedback instead, under "Questions and answers" (``Quiz.answers_html``).
 """
 
 from __future__ import annotations
 
 import fcntl
 import glob
+import json
 import os
 import shutil
 import sys
 import time
+
+from course_helpers.notebook.quiz import METADATA_KEY, Quiz
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STAGE = os.path.join(REPO, "build", "book_src")
@@ -27,8 +34,25 @@ def stage() -> list[str]:
     shutil.copytree(os.path.join(REPO, "book"), STAGE)
     chapters = sorted(glob.glob(os.path.join(REPO, "notebooks", "*.ipynb")))
     for path in chapters:
-        shutil.copy2(path, STAGE)
+        with open(path, encoding="utf-8") as handle:
+            notebook = json.load(handle)
+        with_answers(notebook)
+        with open(os.path.join(STAGE, os.path.basename(path)), "w", encoding="utf-8") as handle:
+            json.dump(notebook, handle, indent=1, ensure_ascii=False)
     return [os.path.basename(p) for p in chapters]
+
+
+def with_answers(notebook: dict) -> list[str]:
+    """Show the answers in every quiz output of ``notebook`` (in place); return the quizzes' names."""
+    names = []
+    for cell in notebook["cells"]:
+        for output in cell.get("outputs", []):
+            name = output.get("metadata", {}).get(METADATA_KEY, {}).get("quiz")
+            if name:
+                output["data"] = {"text/html": Quiz.load(name).answers_html(),
+                                  "text/plain": output["data"]["text/plain"]}
+                names.append(name)
+    return names
 
 
 def main() -> int:

@@ -15,16 +15,21 @@ import nbformat
 from nbclient import NotebookClient
 
 
+def run(notebook: nbformat.NotebookNode, cwd: str, timeout: int = 600) -> None:
+    """Run every cell of ``notebook`` in a fresh kernel started in ``cwd``, filling in its outputs
+    and its widget state (``metadata.widgets``)."""
+    os.environ.pop("ROS_DOMAIN_ID", None)
+    client = NotebookClient(notebook, timeout=timeout, kernel_name="python3",
+                            resources={"metadata": {"path": cwd}},
+                            store_widget_state=True, record_timing=False)
+    client.execute()
+
+
 def execute(path: str, timeout: int = 600) -> float:
     """Execute one notebook in place; return the seconds it took."""
     notebook = nbformat.read(path, as_version=4)
-    env_cwd = os.path.dirname(os.path.abspath(path))
-    os.environ.pop("ROS_DOMAIN_ID", None)
-    client = NotebookClient(notebook, timeout=timeout, kernel_name="python3",
-                            resources={"metadata": {"path": env_cwd}},
-                            store_widget_state=True, record_timing=False)
     start = time.monotonic()
-    client.execute()
+    run(notebook, os.path.dirname(os.path.abspath(path)), timeout)
     nbformat.write(notebook, path)
     return time.monotonic() - start
 

@@ -1,25 +1,49 @@
 """Multiple-choice quizzes with feedback on every answer (the closing section of every chapter).
 
-In JupyterLab a quiz is a set of buttons: clicking an answer says whether it is
-right and why. Rendered statically (a web page of the notebook, nbval), the same
-quiz shows every question with its correct answer and the explanations, so
-readers who cannot run the notebook still learn from it.
+Each chapter's quiz is a small YAML file in ``quizzes/`` beside this module, so the answers are in
+neither the notebook's cells nor its saved outputs (nor a student's working copy of the notebooks).
+A chapter's quiz cell is::
 
-    from course_helpers.notebook.quiz import Quiz, Question, Choice
-    Quiz("Chapter 01", [
-        Question("Which process must start before ROS 2 nodes can find each other?", [
-            Choice("roscore", False, "That was ROS 1's master; ROS 2 has none."),
-            Choice("None: DDS discovery is peer to peer", True, "Right: ..."),
-        ]),
-    ]).show()
+    from course_helpers.notebook.quiz import Quiz
+    Quiz.load("03_topics")
+
+In JupyterLab the quiz is a set of buttons: clicking an answer says whether it is right and why.
+A saved notebook (nbval, GitHub, a kernel-less reader) shows the questions and their choices with
+no answer marked. The course website shows the answers: ``tools/build_book.py`` puts
+:meth:`Quiz.answers_html` in place of the saved record, under "Questions and answers".
+
+A quiz file::
+
+    title: 03 Topics
+    questions:
+      - prompt: Which command lists the active topics with their types?
+        choices:
+          - text: ros2 node list
+            feedback: That lists nodes.
+          - text: ros2 topic list -t
+            correct: true
+            feedback: "Right: %ros2 topic list -t in this notebook."
+
+A choice without ``correct: true`` is a wrong one. Quizzes can also be built in code:
+``Quiz(title, [Question(prompt, [Choice(text, correct, feedback), ...]), ...])``.
 """
 
 from __future__ import annotations
 
 import html
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from course_helpers.core.errors import CourseError
+
+QUIZ_DIR = Path(__file__).resolve().parent / "quizzes"
+# Output metadata of a displayed quiz: {"ros2_course": {"quiz": "03_topics"}} (the site finds it so).
+METADATA_KEY = "ros2_course"
+# What a quiz file's entries hold: key -> kind of value; every key but "correct" is required.
+FILE_KEYS = {"title": "text", "questions": "list"}
+QUESTION_KEYS = {"prompt": "text", "choices": "list"}
+CHOICE_KEYS = {"text": "text", "correct": "true or false", "feedback": "text"}
+OPTIONAL_KEYS = {"correct"}
 
 
 @dataclass
@@ -37,7 +61,6 @@ class Question:
 
     prompt: str
     choices: list[Choice]
-    explanation: str = ""
 
     def __post_init__(self):
         self.choices = list(self.choices)
@@ -53,11 +76,15 @@ class Question:
 
 @dataclass
 class Quiz:
-    """A titled list of questions; ``show()`` displays it, ``grade()`` scores picks in code."""
+    """A titled list of questions; ``show()`` displays it, ``grade()`` scores picks in code.
+
+    ``name`` is the quiz file it came from ("03_topics"), empty for a quiz built in code.
+    """
 
     title: str
     questions: list[Question]
-    picks: dict[int, int] = field(default_factory=dict)
+    name: str = ""
+    picks: dict[int, int] = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
         self.questions = list(self.questions)
@@ -68,6 +95,62 @@ class Quiz:
                 raise CourseError(f"quiz {self.title!r}: each question must be "
                                   f"Question(prompt, [Choice(...), ...]), got {question!r}")
 
+    # ------------------------------------------------------------------ files
+    @classmethod
+    def names(cls) -> list[str]:
+        """The course's quizzes, by name (the file names in ``quizzes/`` without ``.yaml``)."""
+        return sorted(path.stem for path in QUIZ_DIR.glob("*.yaml"))
+
+    @classmethod
+    def load(cls, name: str) -> Quiz:
+        """The course's quiz ``name`` ("03_topics"), read from ``quizzes/<name>.yaml``."""
+        if not isinstance(name, str) or name not in cls.names():
+            raise CourseError(f"there is no quiz named {name!r}; the course's quizzes are "
+                              f"{', '.join(cls.names()) or '(none)'}")
+        return cls.from_file(QUIZ_DIR / f"{name}.yaml")
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> Quiz:
+        """A quiz read from the YAML file ``path``; a mistake raises CourseError naming the file and
+        the question or choice at fault."""
+        import yaml
+
+        path = Path(path)
+        try:
+            data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except OSError as error:
+            raise CourseError(f"cannot read the quiz file {path}: {error.strerror}") from None
+        except yaml.YAMLError as error:
+            raise CourseError(f"{path.name} is not valid YAML: {error}") from None
+        try:
+            return cls.from_dict(data, name=path.stem)
+        except CourseError as error:
+            raise CourseError(f"{path.name}: {error}") from None
+
+    @classmethod
+    def from_dict(cls, data, name: str = "") -> Quiz:
+        """A quiz from the mapping a quiz file holds (``title``, ``questions``)."""
+        _check_entry(data, FILE_KEYS, "the file")
+        questions = []
+        for qi, entry in enumerate(data["questions"], 1):
+            _check_entry(entry, QUESTION_KEYS, f"question {qi}")
+            choices = []
+            for ci, item in enumerate(entry["choices"], 1):
+                _check_entry(item, CHOICE_KEYS, f"question {qi}, choice {ci}")
+                choices.append(Choice(item["text"], item.get("correct", False), item["feedback"]))
+            questions.append(Question(entry["prompt"], choices))
+        return cls(data["title"], questions, name=name)
+
+    def to_dict(self) -> dict:
+        """The mapping a quiz file holds (the inverse of :meth:`from_dict`)."""
+        def choice(c: Choice) -> dict:
+            return {"text": c.text, **({"correct": True} if c.correct else {}), "feedback": c.feedback}
+
+        return {"title": self.title,
+                "questions": [{"prompt": q.prompt, "choices": [choice(c) for c in q.choices]}
+                              for q in self.questions]}
+
+    # ------------------------------------------------------------------ answering
     def answer(self, question: int, choice: int) -> Choice:
         """Pick ``choice`` (0-based) for ``question`` (0-based); return it with its feedback."""
         if not 0 <= question < len(self.questions):
@@ -83,6 +166,7 @@ class Quiz:
         right = sum(self.questions[q].choices[c].correct for q, c in self.picks.items())
         return right, len(self.questions)
 
+    # ------------------------------------------------------------------ display
     def widget(self):
         """The interactive quiz as an ipywidgets VBox."""
         import ipywidgets as w
@@ -102,7 +186,7 @@ class Quiz:
         return w.VBox(rows)
 
     def show(self) -> None:
-        """Display the quiz: interactive in JupyterLab, answers visible on a static page."""
+        """Display the quiz: interactive in JupyterLab, the questions without answers when saved."""
         from IPython.display import display
 
         display(self)
@@ -110,9 +194,9 @@ class Quiz:
     def _ipython_display_(self):
         from IPython.display import display
 
-        display({"text/plain": self.as_text(),
-                 "text/html": self.as_html(),
-                 **self._widget_bundle()}, raw=True)
+        metadata = {METADATA_KEY: {"quiz": self.name}} if self.name else None
+        display({"text/plain": self.as_text(), "text/html": self.as_html(), **self._widget_bundle()},
+                raw=True, metadata=metadata)
 
     def _widget_bundle(self) -> dict:
         try:
@@ -123,18 +207,29 @@ class Quiz:
             return {}
 
     def as_text(self) -> str:
-        """Plain-text rendering with the answers (what nbval compares)."""
-        lines = [f"Quiz: {self.title} ({len(self.questions)} questions)"]
+        """Plain text: the questions and their choices, no answer marked (what a notebook saves)."""
+        lines = [f"Quiz: {self.title} ({len(self.questions)} questions)", _WHERE_ANSWERS]
         for qi, question in enumerate(self.questions):
             lines.append(f"{qi + 1}. {question.prompt}")
-            for choice in question.choices:
-                lines.append(f"   [{'x' if choice.correct else ' '}] {choice.text}")
+            lines += [f"   - {choice.text}" for choice in question.choices]
         return "\n".join(lines)
 
     def as_html(self) -> str:
-        """Static HTML rendering: every question, the correct answers marked, all feedback."""
+        """Static HTML: the questions and their choices, no answer marked (what a notebook saves)."""
+        parts = [f"<div class='course-quiz'><h4>Quiz: {html.escape(self.title)}</h4>"
+                 f"<p><i>{html.escape(_WHERE_ANSWERS)}</i></p><ol>"]
+        for question in self.questions:
+            parts.append(f"<li><b>{html.escape(question.prompt)}</b><ul>")
+            parts += [f"<li>{html.escape(choice.text)}</li>" for choice in question.choices]
+            parts.append("</ul></li>")
+        parts.append("</ol></div>")
+        return "".join(parts)
+
+    def answers_html(self) -> str:
+        """HTML for the course website: every question, the correct answers marked, all feedback,
+        under "Questions and answers"."""
         parts = [f"<div class='course-quiz'><h4>Quiz: {html.escape(self.title)}</h4>",
-                 "<p><i>Run the notebook to answer interactively. Reading a static copy? "
+                 "<p><i>Run the notebook to answer interactively. Reading this page? "
                  "Open the answers below.</i></p><details><summary>Questions and answers"
                  "</summary><ol>"]
         for question in self.questions:
@@ -163,6 +258,32 @@ class Quiz:
             score.value = self._score_html()
 
         return handler
+
+
+_WHERE_ANSWERS = ("Run this cell to answer: each click says whether you are right, and why. The answers "
+                  "are on the course website, under this chapter's quiz.")
+
+
+def _check_entry(entry, keys: dict[str, str], where: str) -> None:
+    """Raise CourseError unless ``entry`` is a mapping with the ``keys`` (key -> kind of value)
+    that are required, no other key, and a value of the right kind for each."""
+    allowed = ", ".join(keys)
+    if not isinstance(entry, dict):
+        raise CourseError(f"{where} must be a mapping with the keys {allowed}, got {entry!r}")
+    missing = [key for key in keys if key not in OPTIONAL_KEYS and key not in entry]
+    unknown = sorted(str(key) for key in entry if key not in keys)
+    if missing or unknown:
+        problems = ([f"missing {', '.join(missing)}"] if missing else []) + \
+                   ([f"unknown {', '.join(unknown)}"] if unknown else [])
+        raise CourseError(f"{where}: {'; '.join(problems)} (the keys are {allowed})")
+    for key, kind in keys.items():
+        value = entry.get(key)
+        fits = {"text": isinstance(value, str) and bool(value.strip()),
+                "list": isinstance(value, list),
+                "true or false": isinstance(value, bool)}[kind]
+        if key in entry and not fits:
+            raise CourseError(f"{where}: {key!r} must be {'non-empty ' * (kind == 'text')}{kind}, "
+                              f"got {value!r}")
 
 
 def _short(text: str, limit: int = 90) -> str:
