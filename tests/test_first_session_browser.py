@@ -7,16 +7,30 @@ pseudo-terminal as a student's shell would run it, with an empty working copy. T
    Debian's ``/usr/bin/chromium``): JupyterLab opens at notebook 00, shows no nbgrader menu, panel or
    button, marks the saved outputs as the reference run's, and its log holds no nbgrader message;
 2. runs all of notebook 00: no cell shows an error, and no saved-output note is left;
-3. (the textbook ``rclpy.spin`` and Interrupt: ``test_textbook_spin_and_interrupt_keep_the_nodes``
-   below, skipped until the core's interrupt fix is merged);
+3. pastes the textbook's ``rclpy.init(); n = Node('x'); rclpy.spin(n)`` into a new cell of 00 and
+   presses the Interrupt button once ``/x`` is in the kernel's graph. Before that, a new cell puts
+   the chapter's talker and listener back (00's last cell removes them) and starts a relay child
+   with ``rt.spawn``, and another records ``rt.nodes()`` and ``rt.children()``. After it: the cell
+   shows one line, ``KeyboardInterrupt`` at ``rclpy.spin(n)``, and no traceback (the /rosout reader's,
+   the executor's or any other) is anywhere in the page; the same recording cell prints the same
+   nodes and children (same PIDs), the server's process tree is unchanged, and 00's own course
+   cell (talker, listener, three messages) passes again with no healing notice;
 4. opens the QoS lab beside a CPU-bound process and another course kernel running chapter 03's
    nodes, runs the preset "best-effort vs reliable under load" with its "Run both", and checks
    that reliable delivered every sample and that the lab says the machine was busy;
 5. presses Ctrl-C in the terminal: ``make lab`` ends cleanly (exit 0, no "Interrupt" from make) and
    every kernel and its child processes are gone.
 
-Screenshots: ``tests/artifacts/first_session_start.png`` (the start page) and
+Screenshots: ``tests/artifacts/first_session_start.png`` (the start page),
+``tests/artifacts/first_session_interrupt.png`` (the interrupted cell and the nodes after it) and
 ``tests/artifacts/first_session_lab_under_load.png`` (the QoS lab's panel under load).
+
+Cells are run as a student runs them, with a click in the editor and Shift+Enter, but only once
+the status bar shows the notebook's own kernel idle and the cell's editor has the focus in edit
+mode. A freshly opened notebook renders its cells while it still has no kernel ("No Kernel |
+Initializing"); a Shift+Enter then makes JupyterLab start a kernel of its own beside the one being
+started, or ask which to use, and may leave the cell unrun. A Shift+Enter without the focus runs
+another cell or none.
 
 The clone uses this checkout's ``.venv`` (``make lab VENV=...``, its install stamp taken as up to
 date): a set-up from scratch is what ``make test-pythons`` proves, and would take minutes here.
@@ -42,7 +56,8 @@ import pytest
 from course_helpers.core.waiting import poll_until
 from tests.test_qos_lab_browser import CHROMIUM, CHROMIUM_ARGS, SETTINGS, _free_port
 
-# About 2 minutes on a busy 2-core machine: JupyterLab twice, notebook 00, two lab runs under load.
+# About 2 minutes on a busy 2-core machine: JupyterLab twice, notebook 00, the interrupt, two lab runs
+# under load.
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -141,6 +156,8 @@ def test_a_students_first_session(fresh_clone):
                 print(f"start page after {time.monotonic() - started:.0f} s")
                 _run_all_of_00(page)
                 print(f"notebook 00 ran after {time.monotonic() - started:.0f} s")
+                _textbook_spin_and_interrupt(page, server_tree=lambda: _server_tree(runtime))
+                print(f"the textbook spin was interrupted after {time.monotonic() - started:.0f} s")
                 hog, kernel = _busy_machine()
                 _lab_under_load(page)
                 print(f"the lab ran under load after {time.monotonic() - started:.0f} s")
@@ -152,8 +169,7 @@ def test_a_students_first_session(fresh_clone):
         log = (work / ".lab.log").read_text(errors="replace")
         assert "nbgrader" not in log.lower() and "subdirectory" not in log, "nbgrader spoke in the log"
         # 5. Ctrl-C in the terminal: the server shuts its kernels (and their children) down, make ends well.
-        server = psutil.Process(json.loads(next(runtime.glob("jpserver-*.json")).read_text())["pid"])
-        kernels = server.children(recursive=True)
+        kernels = _server(runtime).children(recursive=True)
         assert len(kernels) >= 2, kernels  # 00's and 08b's kernels (and the lab's processes, if any)
         terminal.press_ctrl_c()
         terminal.process.wait(timeout=90)
@@ -203,26 +219,190 @@ def _run_all_of_00(page) -> None:
         return bool(texts) and all(re.fullmatch(r"\[\d+\]:", t.strip()) for t in texts)
 
     assert poll_until(all_ran, 180, period=0.5), prompts.all_inner_texts()
-    errors = page.locator('[data-mime-type="application/vnd.jupyter.error"]')
-    assert errors.count() == 0, errors.all_inner_texts()
+    assert page.locator(".jp-OutputArea-output").count() > 0  # the outputs are there to look at
+    assert _red_outputs(page) == []
     assert page.locator(".jp-RenderedMarkdown", has_text=REFERENCE_NOTE).count() == 0  # every output is live
+
+
+# Step 3's cells. The chapter's nodes come back (00's last cell removes them) beside a child process.
+CHAPTER_AGAIN = """from course_helpers.nodes import Relay
+
+listener = rt.add(Listener)
+talker = rt.add(Talker)
+rt.spawn('relay', Relay, wait_for='/relay')
+rt.wait_until(lambda: len(listener.heard) >= 3, timeout=10, what='three messages')
+print('domain', rt.domain.domain_id)"""
+STATE = """print('nodes', rt.nodes())
+print('children', sorted((name, child.pid, child.alive) for name, child in rt.children().items()))"""
+TEXTBOOK = """import rclpy
+from rclpy.node import Node
+
+rclpy.init()
+n = Node('x')
+rclpy.spin(n)"""
+INTERNAL = ("Traceback (most recent call last)", "ExternalShutdownException", "/rosout reader",
+            "[course] internal error", "in the executor")
+
+
+def _server(runtime) -> psutil.Process:
+    """The Jupyter server ``make lab`` started (from its runtime file)."""
+    return psutil.Process(json.loads(next(runtime.glob("jpserver-*.json")).read_text())["pid"])
+
+
+def _server_tree(runtime) -> list[tuple[int, str]]:
+    """The server's processes (kernels, their children, theirs): (PID, name), sorted."""
+    return sorted((p.pid, p.name()) for p in _server(runtime).children(recursive=True))
+
+
+def _textbook_spin_and_interrupt(page, server_tree) -> None:
+    """Step 3: the textbook's spin, the Interrupt button, then the same nodes and children."""
+    notebook = page.locator(".jp-NotebookPanel:visible")
+    setup = _new_cell(page, notebook, CHAPTER_AGAIN)
+    _run_cell(page, notebook, setup)
+    setup_text = _outputs(setup)
+    domain = int(re.search(r"^domain (\d+)$", setup_text, re.M).group(1))
+    before = _state(_run_cell(page, notebook, _new_cell(page, notebook, STATE)))
+    tree_before = server_tree()
+    assert "'/listener', '/talker'" in before and "('relay', " in before, before
+
+    spin = _new_cell(page, notebook, TEXTBOOK)
+    _run_cell(page, notebook, spin, finished=False)  # it spins until interrupted
+    assert _node_in_domain(domain, "x", timeout=60), "the textbook's node /x never joined the graph"
+    notebook.locator('[data-command="notebook:interrupt-kernel"]').first.click()  # the toolbar's button
+    spin.locator(".jp-InputPrompt", has_text=re.compile(r"^\s*\[\d+\]:\s*$")).wait_for(timeout=60_000)
+    shown = [line for line in _outputs(spin).splitlines() if line.strip()]
+    print(f"the interrupted cell shows: {shown}")
+    assert len(shown) == 1 and shown[0].startswith("KeyboardInterrupt"), shown
+    assert "rclpy.spin(n)" in shown[0], shown  # it stopped the spin, not an import or rclpy.init()
+    after = _state(_run_cell(page, notebook, _new_cell(page, notebook, STATE)))
+    print(f"before the interrupt: {before}\nafter it: {after}")
+    assert after == before, f"before:\n{before}\nafter:\n{after}"
+    assert server_tree() == tree_before, (tree_before, server_tree())
+    page.screenshot(path=os.path.join(ARTIFACTS, "first_session_interrupt.png"))
+
+    # The next course cell: 00's own (talker, listener, three messages heard), with no healing notice.
+    course = notebook.locator(".jp-CodeCell").filter(has_text="timeout=5, what='three messages'").first
+    out = _outputs(_run_cell(page, notebook, course))
+    assert re.search(r"\['hello \d+', 'hello \d+', 'hello \d+'\]", out) and "[course]" not in out, out
+    assert _red_outputs(page) == _outputs(spin).strip().splitlines()  # the interrupt's line, nothing else
+    page_text = notebook.inner_text()
+    assert not [text for text in INTERNAL if text in page_text], [t for t in INTERNAL if t in page_text]
+
+
+def _new_cell(page, notebook, code: str):
+    """An empty code cell at the end of the notebook (a new one if needed), ``code`` pasted in."""
+    cells = notebook.locator(".jp-Notebook .jp-Cell")
+    count = cells.count()
+    cell = cells.nth(count - 1)  # by position: the last cell changes when Shift+Enter adds one
+    code_cell = "jp-CodeCell" in cell.get_attribute("class")
+    if not code_cell or cell.locator(".jp-InputArea-editor").inner_text().strip():
+        cell.locator(".jp-InputPrompt").first.click()  # selects it, in command mode
+        notebook.locator(".jp-Notebook.jp-mod-commandMode").wait_for(timeout=10_000)
+        page.keyboard.press("b")  # insert a cell below
+        cell = cells.nth(count)
+        cell.wait_for(timeout=10_000)
+    cell.locator(".jp-InputArea-editor").click()
+    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=10_000)
+    page.keyboard.insert_text(code)  # as a paste: no auto-indent or closing brackets
+    assert cell.locator(".jp-InputArea-editor").inner_text().split() == code.split(), "the paste went wrong"
+    return cell
+
+
+def _run_cell(page, notebook, cell, finished: bool = True):
+    """Shift+Enter in ``cell`` as a student does, once that is sure to run it; returns the cell.
+
+    Waits first for the notebook's own kernel to be idle (a Shift+Enter while the notebook has no
+    kernel yet may start a second one, ask which to use, or leave the cell unrun) and for the
+    cell's editor to have the focus in edit mode. Then waits for the cell to start (``[*]``), and
+    with ``finished`` for its new execution count.
+    """
+    _wait_for_its_kernel(page)
+    prompt = cell.locator(".jp-InputPrompt").first
+    shown_before = prompt.inner_text().strip()
+    cell.locator(".jp-InputArea-editor").click()
+    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=10_000)
+    notebook.locator(".jp-Notebook.jp-mod-editMode").wait_for(timeout=10_000)
+    page.keyboard.press("Shift+Enter")
+    dialog = page.locator(".jp-Dialog")
+
+    def started() -> bool:
+        assert dialog.count() == 0, f"JupyterLab asks instead of running: {dialog.all_inner_texts()}"
+        return prompt.inner_text().strip() not in ("", "[ ]:", shown_before)
+
+    assert poll_until(started, 30, period=0.1), f"the cell did not start: {prompt.inner_text()!r}"
+    if finished:
+        def ended() -> bool:
+            text = prompt.inner_text().strip()
+            return bool(re.fullmatch(r"\[\d+\]:", text)) and text != shown_before
+
+        assert poll_until(ended, 120, period=0.2), f"the cell did not end: {prompt.inner_text()!r}"
+    return cell
+
+
+def _red_outputs(page) -> list[str]:
+    """The outputs JupyterLab shows in red: errors (rendered as their traceback) and stderr."""
+    red = page.locator('.jp-OutputArea-output[data-mime-type="application/vnd.jupyter.stderr"]')
+    return red.all_inner_texts()
+
+
+def _wait_for_its_kernel(page) -> None:
+    """Until the status bar shows the current notebook's own kernel, connected and idle.
+
+    (The toolbar's execution indicator says "idle" before the notebook has a kernel at all.)
+    """
+    name = page.locator("#jp-main-dock-panel .lm-TabBar-tab.lm-mod-current .lm-TabBar-tabLabel").inner_text()
+    bar = page.locator("#jp-main-statusbar")
+
+    def ready() -> bool:
+        text = bar.inner_text()
+        return name.strip() in text and re.search(r"\|\s*Idle\b", text) is not None
+
+    assert poll_until(ready, 120, period=0.2), f"{name}'s kernel is not idle: {bar.inner_text()!r}"
+
+
+def _outputs(cell) -> str:
+    """The text of a cell's outputs (its node consoles included)."""
+    return "\n".join(cell.locator(".jp-OutputArea-output").all_inner_texts())
+
+
+def _state(cell) -> str:
+    """The ``nodes ...`` and ``children ...`` lines the STATE cell printed."""
+    return "\n".join(line for line in _outputs(cell).splitlines() if line.startswith(("nodes ", "children ")))
+
+
+def _node_in_domain(domain: int, name: str, timeout: float) -> bool:
+    """Whether a node ``name`` shows up in ROS domain ``domain`` (seen from a context of this test)."""
+    import rclpy
+    from rclpy.context import Context
+
+    from course_helpers.core.dds_config import init_context
+
+    context = Context()
+    init_context(context, domain)
+    try:
+        node = rclpy.create_node("first_session_watcher", context=context)
+        try:
+            return poll_until(lambda: name in [n for n, _ in node.get_node_names_and_namespaces()], timeout,
+                              period=0.2)
+        finally:
+            node.destroy_node()
+    finally:
+        context.try_shutdown()
 
 
 def _busy_machine():
     """A CPU-bound process and another course kernel with chapter 03's nodes (as in test_qos_lab_busy)."""
-    import nbformat
-
     from tests.kernel_session import KernelSession
-    from tests.test_qos_lab_busy import CH03_CELLS, SENSOR_ARRAY
+    from tests.test_qos_lab_busy import ch03_busy_cells
 
-    notebook = nbformat.read(os.path.join(REPO, "notebooks", "03_topics.ipynb"), as_version=4)
-    sources = {cell.get("id"): cell.source for cell in notebook.cells}
+    cells = ch03_busy_cells()  # fails, naming the cell, if the sensor array's cut has moved
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     kernel = KernelSession(cwd=os.path.join(REPO, "notebooks"))
-    cell, cut = SENSOR_ARRAY
-    for code in [sources[c] for c in CH03_CELLS] + [sources[cell].split(cut)[0]]:
+    for code in cells:
         _out, error = kernel.run(code, timeout=120)
         assert error is None, f"chapter 03's cell failed: {error}\n{code}"
+    out, error = kernel.run("print(len(rt.children()))")
+    assert error is None and out.strip() == "3", out  # thermo_cold, thermo_hot, sensor_array
     return hog, kernel
 
 
@@ -232,11 +412,11 @@ def _lab_under_load(page) -> None:
     page.locator(".lm-TabBar-tab.lm-mod-current", has_text="08b_qos_lab.ipynb").wait_for(timeout=90_000)
     notebook = page.locator(".jp-NotebookPanel:visible")
     notebook.locator(".jp-CodeCell").first.wait_for(timeout=90_000)
+    opened = time.monotonic()
+    _wait_for_its_kernel(page)  # the cells render while the status bar still says "No Kernel | Initializing"
+    print(f"08b's kernel was idle {time.monotonic() - opened:.1f} s after its first cell showed")
     for text in ("rt = get_runtime()", "lab = qos_lab()"):  # the runtime, then the lab's cell
-        cell = notebook.locator(".jp-CodeCell").filter(has_text=text).first
-        cell.locator(".jp-InputArea-editor").click()
-        page.keyboard.press("Shift+Enter")
-        cell.locator(".jp-InputPrompt", has_text=re.compile(r"\[\d+\]")).wait_for(timeout=90_000)
+        _run_cell(page, notebook, notebook.locator(".jp-CodeCell").filter(has_text=text).first)
     panel = notebook.locator(".qos-lab").first
     panel.wait_for(timeout=60_000)
     panel.locator("button", has_text="best-effort vs reliable under load").click()
@@ -255,14 +435,3 @@ def _lab_under_load(page) -> None:
     rows = panel.locator("table.qos-lab-results tbody tr")
     delivered = [int(rows.nth(i).locator("td").nth(3).inner_text()) for i in range(rows.count())]
     assert len(delivered) == 2 and delivered[1] >= delivered[0], delivered  # reliable never below
-
-
-@pytest.mark.skip(reason="needs the core's interrupt fix (issue 22, item 2), which is not merged yet")
-def test_textbook_spin_and_interrupt_keep_the_nodes():
-    """The place for step 3 of the first session, once interrupts keep ROS (issue 22, item 2).
-
-    After notebook 00 has run: paste the textbook's ``rclpy.init(); n = Node('x'); rclpy.spin(n)``
-    into a new cell, run it and press Interrupt; the cell must show a one-line KeyboardInterrupt (no
-    internal traceback), ``rt.nodes()`` and the process list must still hold the chapter's nodes and
-    children, and the next course cell must pass. Save ``tests/artifacts/first_session_interrupt.png``.
-    """
