@@ -103,7 +103,9 @@ def test_a_busy_callback_delays_a_timer_of_its_thread_only(rt):
     loaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20)
     threaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20, executor="multi",
                                     separate_groups=True)
-    assert len(idle.intervals_s) > 100 and len(loaded.intervals_s) > 100
+    # enough calls to judge; the loaded run makes fewer (each 20 ms callback holds the thread), and
+    # how many fewer depends on the machine's speed
+    assert len(idle.intervals_s) > 100 and len(loaded.intervals_s) > 20
     assert abs(statistics_median(idle.intervals_s) - 0.01) < 0.002
     assert not idle.due_while_busy() and not idle.busy
     # one thread: every call that fell due during the 20 ms callback waited for its end (on any machine)
