@@ -21,6 +21,7 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+import threading
 from pathlib import Path
 
 import psutil
@@ -295,10 +296,32 @@ def test_ros1_and_ros2_failure_experiment(rt):
     assert two.restarted_knows == ["/ros2_listener", "/ros2_talker"]
     table = ros1.side_by_side(one, two)
     assert "no, nothing in" in table and "yes, after" in table and "known before the kill" in table
-    assert not ros1_module.processes.running(ros1_module.GROUP)  # the master and the rospy nodes stopped
+    # the result comes first; its thread then stops the master and the rospy nodes
+    assert poll_until(lambda: not ros1_module.processes.running(ros1_module.GROUP), 15)
     assert not any(label.startswith("failure_") for label in rt.children())
     assert ros1.ros1_failure_experiment().restarted_knows == ["/newcomer"]  # on its own, and after a run
     assert ros1.ros2_failure_experiment(rt).restarted_knows == ["/ros2_listener", "/ros2_talker"]
+
+
+@needs_ros1
+def test_the_background_run_stops_its_own_processes_not_their_labels():
+    """A re-run cell may start a new master while the last run still stops its processes (rospy takes
+    about a second to exit): the run must stop the processes it used, never whatever has their label."""
+    from course_helpers.chapters import ch01_ros1 as ros1
+
+    processes = ros1_module.processes
+    run = ros1.start_failure_experiment()
+    run.result(timeout=120)
+    old = dict(processes.running(ros1_module.GROUP))
+    assert old, "the run's processes were already stopped: this test cannot see the difference"
+    newcomer = processes.start(ros1_module.MASTER_LABEL, processes.program_argv("sleep", "60"),
+                               group=ros1_module.GROUP, channel=False)  # what a re-run cell's master would be
+    try:
+        assert poll_until(lambda: not any(child.alive for child in old.values() if child is not newcomer), 15)
+        assert poll_until(lambda: not any(t.name == "ros1-failure" for t in threading.enumerate()), 15)
+        assert newcomer.alive and processes.get(ros1_module.MASTER_LABEL, ros1_module.GROUP) is newcomer
+    finally:
+        newcomer.stop()
 
 
 def test_the_failure_table_shows_what_every_result_measured():

@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import threading
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 
 from course_helpers.chapters.ch01_ros1.graph_watcher import GraphWatcher
-from course_helpers.chapters.ch01_ros1.ros1 import Ros1Master, start_master, start_rospy, stop_ros1
+from course_helpers.chapters.ch01_ros1.ros1 import GROUP, Ros1Master, start_master, start_rospy
+from course_helpers.core import processes
 from course_helpers.core.domains import reserve_spare_domain
 from course_helpers.core.waiting import poll_until
 from course_helpers.nodes.chatter import Listener, make_talker
@@ -34,10 +35,9 @@ KEEP_TALKING_TIMEOUT_S = 5.0
 MIN_WINDOW_S = 1.0  # a newcomer gets twice what the first listener needed, and at least this long
 REGISTER_WAIT_S = 5.0  # at most this long, a restarted master is watched for the newcomer to register
 START_TIMEOUT_S = 20.0
-ROS1_LABELS = ("talker", "listener", "newcomer")  # the rospy processes (group 'ros1')
 
 _background_lock = threading.Lock()
-_background: list[Future] = []
+_background: list[threading.Thread] = []
 
 
 def _heard(child) -> int:
@@ -84,52 +84,73 @@ def ros1_failure_experiment(master: Ros1Master | None = None, listener=None,
             its talker (label 'talker'), as chapter 01's cells start them. None, or a master or
             listener that is no longer running (a re-run cell), starts both here.
     """
+    used: list[processes.ChildProcess] = []
     try:
-        if master is None or listener is None or not (master.alive and listener.alive):
-            master = start_master()
-            listener = start_talking_pair(master, topic)
-        listener.wait_for_report("heard", START_TIMEOUT_S, "the rospy listener's first message")
-        first = _first_heard_s(listener)
-        known_before = master.nodes()
-        master.kill()
-        kept, kept_s = _keeps_talking(listener)
-        window = _window(first)
-        newcomer = start_rospy("newcomer", "listener", master, topic)
-        newcomer_s = _newcomer_hears(newcomer, window)
-        restarted_at = time.monotonic()
-        master = start_master(master.port)  # the same address: every node still knows it
-        # the newcomer was still knocking (rospy retries): its registration shows the new master works
-        poll_until(lambda: "/newcomer" in master.nodes(), REGISTER_WAIT_S, period=0.05)
-        knows, restart_s = master.nodes(), time.monotonic() - restarted_at
-        return FailureResult(
-            system="ROS 1", killed="the master (rosmaster, SIGKILL)", first_message_s=first,
-            kept_talking=kept, kept_talking_s=kept_s, newcomer_heard=newcomer_s is not None,
-            newcomer_s=newcomer_s, newcomer_window_s=window,
-            after_restart=f"the new master knows {names(knows)}", known_before=known_before,
-            restarted_knows=knows, restart_s=restart_s,
-            notes=["the newcomer's rospy.init_node waited for a master, and registered with the new one"])
+        return _measure_ros1(used, master, listener, topic)
     finally:
-        stop_ros1(ROS1_LABELS)
-        if master is not None:
-            master.stop()
+        processes.stop_together(used)
+
+
+def _measure_ros1(used: list, master, listener, topic: str) -> FailureResult:
+    """The experiment itself. Every process it uses goes into ``used``, to be stopped after: these very
+    processes, never whichever process has their label by then (a re-run cell may have started new ones)."""
+    if master is None or listener is None or not (master.alive and listener.alive):
+        master = start_master()
+        used.append(master.child)
+        listener = start_talking_pair(master, topic)
+    used += [master.child, listener, *filter(None, [processes.get("talker", GROUP)])]
+    listener.wait_for_report("heard", START_TIMEOUT_S, "the rospy listener's first message")
+    first = _first_heard_s(listener)
+    known_before = master.nodes()
+    master.kill()
+    kept, kept_s = _keeps_talking(listener)
+    window = _window(first)
+    newcomer = start_rospy("newcomer", "listener", master, topic)
+    used.append(newcomer)
+    newcomer_s = _newcomer_hears(newcomer, window)
+    restarted_at = time.monotonic()
+    master = start_master(master.port)  # the same address: every node still knows it
+    used.append(master.child)
+    # the newcomer was still knocking (rospy retries): its registration shows the new master works
+    poll_until(lambda: "/newcomer" in master.nodes(), REGISTER_WAIT_S, period=0.05)
+    knows, restart_s = master.nodes(), time.monotonic() - restarted_at
+    return FailureResult(
+        system="ROS 1", killed="the master (rosmaster, SIGKILL)", first_message_s=first,
+        kept_talking=kept, kept_talking_s=kept_s, newcomer_heard=newcomer_s is not None,
+        newcomer_s=newcomer_s, newcomer_window_s=window,
+        after_restart=f"the new master knows {names(knows)}", known_before=known_before,
+        restarted_knows=knows, restart_s=restart_s,
+        notes=["the newcomer's rospy registered with the new master as soon as it answered"])
 
 
 def start_failure_experiment(master: Ros1Master | None = None, listener=None,
                              topic: str = "/chatter") -> Future:
     """Start :func:`ros1_failure_experiment` in a thread of its own and return at once.
 
-    ``.result()`` of the returned Future waits for the :class:`FailureResult` (or raises what the
-    experiment raised). A run started earlier is finished first, so a re-run cell never has two.
+    ``.result()`` of the returned Future gives the :class:`FailureResult` (or raises what the
+    experiment raised) as soon as it is measured; the thread then stops the ROS 1 processes (rospy
+    takes about a second to exit). A run started earlier is finished first, stops included, so a
+    re-run cell never has two.
     """
+    future: Future = Future()
+
+    def run() -> None:
+        used: list[processes.ChildProcess] = []
+        try:
+            future.set_result(_measure_ros1(used, master, listener, topic))
+        except BaseException as error:  # handed to whoever asks for the result
+            future.set_exception(error)
+        finally:
+            processes.stop_together(used)
+
     with _background_lock:
         for earlier in _background:
-            earlier.exception()  # waits; whatever it raised was reported to its own caller
+            earlier.join()
         _background.clear()
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ros1-failure")
-        future = pool.submit(ros1_failure_experiment, master, listener, topic)
-        pool.shutdown(wait=False)
-        _background.append(future)
-        return future
+        thread = threading.Thread(target=run, name="ros1-failure", daemon=True)
+        _background.append(thread)
+        thread.start()
+    return future
 
 
 class Ros2Side:

@@ -180,10 +180,11 @@ class Ros1Master:
     def kill(self) -> None:
         """SIGKILL, as a crash or a pulled power cord would end it."""
         self.child.kill()
-        processes.stop([self.child.label], group=GROUP)
+        self.child.stop()
 
     def stop(self) -> None:
-        processes.stop([self.child.label], group=GROUP)
+        """Stop this master (not whichever master now has its label)."""
+        self.child.stop()
 
 
 def start_master(port: int | None = None, label: str = MASTER_LABEL) -> Ros1Master:
