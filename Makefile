@@ -14,13 +14,12 @@ WORK   ?= $(HOME)/ros2-course-work
 # (conftest.py; --no-loadscope-reorder keeps that order instead of xdist's count of tests).
 JOBS   ?= 5
 XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
-# Jupyter refuses to run as root (containers, CI machines) unless told it is deliberate.
-ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root,)
 # The slowest honest cell takes about 25 s on a loaded 2-core machine.
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade clean
+.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade grade-all clean \
+        image test-image
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -41,26 +40,30 @@ $(STAMP): environment.txt pyproject.toml tools/jupyterlab/overrides.json
 	@touch $(STAMP)
 
 # `make lab` opens your own copy of the notebooks (WORK), brought up to date with the course
-# without overwriting your edits (tools/working_copy.py merges cell by cell).
+# without overwriting your edits (tools/working_copy.py merges cell by cell), at the first
+# notebook, without nbgrader's instructor tools; it prints the URL to open, and Ctrl-C stops it
+# cleanly (tools/lab.py). `make lab INSTRUCTOR=1` keeps nbgrader (docs/assignments.md).
+INSTRUCTOR ?=
 lab: setup
-	$(PY) tools/working_copy.py --work $(WORK)
-	$(VENV)/bin/jupyter lab --notebook-dir=$(WORK) --port=$(PORT) $(ROOT_FLAG)
+	@$(PY) tools/lab.py --work $(WORK) --port $(PORT) $(if $(filter-out 0 no false,$(INSTRUCTOR)),--instructor,)
 
+# -rfEs: every failure, error and skipped test is listed at the end, a skip with its reason (what is
+# missing and how to get it).
 test: setup
-	$(PY) -m pytest tests -q $(XDIST)
-	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q
+	$(PY) -m pytest tests -q -rfEs $(XDIST)
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rfEs
 
 unit: setup
-	$(PY) -m pytest tests -q $(XDIST)
+	$(PY) -m pytest tests -q -rfEs $(XDIST)
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
-	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rfEs
 
 # Measure both stages and record each file's seconds in tests/durations.json (the order above).
 durations: setup
-	$(PY) -m pytest tests -q $(XDIST) --record-durations
-	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q --record-durations
+	$(PY) -m pytest tests -q -rfEs $(XDIST) --record-durations
+	$(PY) -m pytest $(NBVAL) $(XDIST) notebooks -q -rfEs --record-durations
 
 lint: setup
 	$(VENV)/bin/ruff check course_helpers tests benchmarks tools notebooks book classroom
@@ -84,9 +87,26 @@ grade: setup
 	    { echo "usage: make grade SUBMISSIONS=folder ASSIGNMENT=04_services"; exit 2; }
 	$(PY) tools/assignments.py grade $(SUBMISSIONS) --assignment $(ASSIGNMENT)
 
+# Maintainers: every assignment graded end to end with real nbgrader (about 25 minutes, so not part of
+# `make test`). Releases CHAPTERS (default: every chapter with a graded exercise) into build/grade-all,
+# grades each one's untouched starting code and then its reference, prints the table and each chapter's
+# time, and fails naming the chapter and exercise where a reference lost a point or a starting code kept all.
+grade-all: setup
+	$(PY) -u tools/assignments.py grade-all $(CHAPTERS)
+
 # Set-up and strict nbval from a fresh clone on every Python 3.10-3.13 found (PYTHON310=... or PATH).
 test-pythons:
 	$(PYTHON) tools/test_pythons.py
+
+# The course's container image (Dockerfile; Codespaces, Binder, Zero to JupyterHub, docker run) with
+# Docker or Podman, whichever works here; `make test-image` builds it and tests it as students use it
+# (tests/test_image.py), then prints its size and the seconds of each stage. tools/container/.
+IMAGE ?= ros2-course
+image:
+	$(PYTHON) -m tools.container.build_image --tag $(IMAGE)
+
+test-image: setup
+	$(PY) -m tools.container.run_image_tests --tag $(IMAGE) --jobs $(JOBS)
 
 # The course website from the committed notebooks (nothing executed, nothing downloaded).
 book: setup

@@ -7,11 +7,15 @@ measured run (``tests/durations.json``), longest first, so that a long file star
 of being dealt last to a worker that is already busy. A file missing from the record counts as the
 median. ``pytest --record-durations ...`` measures a run and writes its files' seconds into the
 record (``make durations`` does both stages).
+
+Where every test must run (``.ci/run`` as root with apt sets ``COURSE_REQUIRE_ALL_TESTS=1``), a
+skip is reported as a failure with its reason, so a missing browser or proxy cannot pass unseen.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import statistics
 from collections import defaultdict
 from pathlib import Path
@@ -19,6 +23,7 @@ from pathlib import Path
 import pytest
 
 RECORD = Path(__file__).parent / "tests" / "durations.json"
+REQUIRE_ALL_ENV = "COURSE_REQUIRE_ALL_TESTS"
 
 
 def pytest_addoption(parser):
@@ -70,3 +75,24 @@ def pytest_configure(config):
     # on the controller (or a run without workers): the workers' reports all arrive there
     if config.getoption("record_durations") and not hasattr(config, "workerinput"):
         config.pluginmanager.register(_Recorder(), "course-durations-recorder")
+
+
+def _skip_is_a_failure(report) -> None:
+    """With ``COURSE_REQUIRE_ALL_TESTS=1``, turn a skip (not an expected failure) into a failure."""
+    if os.environ.get(REQUIRE_ALL_ENV) != "1" or not report.skipped or hasattr(report, "wasxfail"):
+        return
+    reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+    report.outcome = "failed"
+    report.longrepr = f"skipped where every test must run ({REQUIRE_ALL_ENV}=1): {reason}"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    _skip_is_a_failure(outcome.get_result())
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    outcome = yield
+    _skip_is_a_failure(outcome.get_result())

@@ -61,8 +61,8 @@ def main(argv=None) -> int:
             if not ok:
                 failures = [line for line in done.stdout.splitlines() if line.startswith("FAILED")]
                 print("\n".join(failures[:20]) or done.stdout[-3000:] + done.stderr[-2000:], flush=True)
-                log = os.path.join(tempfile.gettempdir(), f"nbval-soak-run{run}.log")
-                with open(log, "w") as f:
+                handle, log = tempfile.mkstemp(prefix=f"nbval-soak-run{run}-", suffix=".log")
+                with os.fdopen(handle, "w") as f:
                     f.write(done.stdout + done.stderr)
                 print(f"the whole output of run {run}: {log}", flush=True)
     finally:

@@ -4,7 +4,7 @@ Start a notebook with ``from course_helpers import get_runtime`` and ``rt = get_
 The folders are the layers, and a module imports only from the layers below its own
 (``tests/test_layers.py`` checks it):
 
-* ``core/``: the runtime, processes, domains, waiting, names, conversions (rclpy only);
+* ``core/``: the runtime, processes, domains, waiting, names, conversions (rclpy and a few named extras);
 * ``notebook/``: what only makes sense in Jupyter: the ``%ros2`` magics, quizzes, widgets;
 * ``viz/``: the live computation graph and the course's diagrams;
 * ``nodes/``: small idiomatic nodes that several chapters reuse;
@@ -21,16 +21,18 @@ __all__ = ["CourseError", "CourseRuntime", "WaitTimeout", "get_runtime", "shutdo
 def get_runtime(executor: str | None = None):
     """This kernel's ROS runtime, started on first use (see :mod:`course_helpers.core.runtime`).
 
-    In a notebook it also makes the ``%ros2`` magics available.
+    In a notebook it also makes the ``%ros2`` magics available, keeps ROS running through the
+    interrupt button, and lets the runtime name the cell that added each node
+    (:mod:`course_helpers.notebook.kernel`).
     """
     from course_helpers.core.console import in_jupyter_kernel
     from course_helpers.core.runtime import get_runtime as _get_runtime
 
     runtime = _get_runtime(executor)
     if in_jupyter_kernel():
-        from course_helpers.notebook.magics import register_once
+        from course_helpers.notebook.kernel import set_up_once
 
-        register_once()
+        set_up_once(runtime)
     return runtime
 
 

@@ -15,28 +15,22 @@ def count_then_report(count: int = 3) -> None:
     report("done", total=count)
 
 
+def report_after(delay_s: float = 2.0) -> None:
+    """A procedure that reports 'late' after ``delay_s`` seconds, then exits."""
+    time.sleep(delay_s)
+    report("late", after_s=delay_s)
+
+
 def fail_after_report() -> None:
     """A procedure that fails: the child reports the error and exits 1."""
     raise RuntimeError("measured nothing")
 
 
 def udp_addresses(pid: int) -> list[str]:
-    """The IPv4 addresses that process ``pid``'s UDP sockets are bound to (from /proc)."""
-    import socket
-    import struct
+    """The addresses that process ``pid``'s IPv4 UDP sockets are bound to."""
+    import psutil
 
-    inodes = set()
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            target = os.readlink(f"/proc/{pid}/fd/{fd}")
-        except OSError:
-            continue  # closed meanwhile
-        if target.startswith("socket:["):
-            inodes.add(target[len("socket:["):-1])
-    with open("/proc/net/udp", encoding="ascii") as table:
-        rows = [line.split() for line in table.read().splitlines()[1:]]
-    local = [row[1].split(":")[0] for row in rows if row[9] in inodes]  # hex, little-endian
-    return [socket.inet_ntoa(struct.pack("<I", int(address, 16))) for address in local]
+    return [c.laddr.ip for c in psutil.Process(pid).net_connections(kind="udp4") if c.laddr]
 
 
 def report_participant_setup(seconds: float = 60.0) -> None:
@@ -51,3 +45,16 @@ def report_participant_setup(seconds: float = 60.0) -> None:
     profile = os.path.basename(os.environ.get(PROFILE_ENV, ""))
     report("setup", range=os.environ.get(RANGE_ENV), profile=profile, udp=udp_addresses(os.getpid()))
     time.sleep(seconds)
+
+
+def start_program_tree() -> None:
+    """A procedure that starts a program with two children through the process layer, then waits.
+
+    It is stopped by a signal (SIGTERM from its kernel, or the kernel's death).
+    """
+    from course_helpers.core import processes
+
+    processes.start("grandchild-program",
+                    processes.program_argv("sh", "-c", "sleep 300 & sleep 300 & wait"),
+                    group="test", channel=False)
+    time.sleep(300)

@@ -28,15 +28,19 @@ class KernelSession:
         self.client.start_channels()
         self.client.wait_for_ready(timeout=60)
         self.displays: dict[str, dict] = {}  # display id -> its latest data (consoles update theirs)
+        self.traceback: list[str] = []  # the last cell's error as a frontend shows it, line by line
+        self.execution_count: int | None = None  # the In [N] number of the last cell run
 
     def run(self, code: str, timeout: float = 60, interrupt_after: float | None = None):
         """Execute a cell; return (outputs, error) where outputs are stream/display texts.
 
         Displays with an ID (node consoles) are also kept in ``displays`` with their latest data,
-        whichever cell was running when they changed.
+        whichever cell was running when they changed. The error's traceback lines are kept in
+        ``traceback``, the cell's execution count in ``execution_count``.
         """
         msg_id = self.client.execute(code)
         outputs, error = [], None
+        self.traceback, self.execution_count = [], None
         deadline = time.monotonic() + timeout
         interrupt_at = time.monotonic() + interrupt_after if interrupt_after else None
         while True:
@@ -62,6 +66,9 @@ class KernelSession:
                 outputs.append(content["data"].get("text/plain", ""))
             elif kind == "error":
                 error = content["ename"]
+                self.traceback = list(content["traceback"])
+            elif kind == "execute_input":
+                self.execution_count = content["execution_count"]
             elif kind == "status" and content["execution_state"] == "idle":
                 return "".join(outputs), error
 

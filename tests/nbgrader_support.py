@@ -1,8 +1,10 @@
-"""What the two nbgrader test files share: chapter 04 released into a temporary course, the
-misbehaving answers, handing in and grading with ``tools/assignments.py``.
+"""What the nbgrader test files share: a chapter (04 unless told otherwise) released into a
+temporary course, the misbehaving answers, handing in (``grading.handin``) and grading with
+``tools/assignments.py``.
 
-The students are split over ``test_nbgrader.py`` and ``test_nbgrader_misbehaving.py`` so that two
-parallel workers grade them at the same time; each file releases its own course.
+The students of chapter 04 are split over ``test_nbgrader.py`` and ``test_nbgrader_misbehaving.py`` so
+that two parallel workers grade them at the same time; each file releases its own course.
+``test_nbgrader_ch10.py`` releases and grades chapter 10.
 """
 
 from __future__ import annotations
@@ -22,8 +24,10 @@ from .conftest import REPO
 TOOLS = Path(REPO) / "tools"
 sys.path.insert(0, str(TOOLS))
 
-from grading import isolation, source, student_build  # noqa: E402, F401 (used by the test files)
-from grading.source import BEGIN, END  # noqa: E402
+from grading import handin, isolation, results, source, student_build, verdict  # noqa: E402, F401
+from grading.handin import EXTRA_CELL as EXTRA  # noqa: E402, F401 (a cell the student added at the end)
+from grading.handin import grade_cells, solved  # noqa: E402, F401
+from grading.source import BEGIN  # noqa: E402, F401
 
 CHAPTER = "04_services"
 EX1, EX2 = "ex1_BatteryMonitor", "ex2_SumRelay"
@@ -58,7 +62,6 @@ class BatteryMonitor(Node):
 RUNAWAY_LINE = "        subprocess.Popen(['sh', '-c', 'sleep 600 &'])  # a detached process nobody stops\n"
 # a daemon of its own session: jupyter_client's kill of the kernel's process group misses it
 LAST_CELL = "import subprocess\n\nsubprocess.Popen(['sh', '-c', 'sleep 700 &'], start_new_session=True)\n"
-EXTRA = "extra cell"  # key of an answer that is a cell the student added at the end
 
 
 def tool(*args: str, timeout: float) -> str:
@@ -68,48 +71,30 @@ def tool(*args: str, timeout: float) -> str:
     return output
 
 
-def grade_cells(nb: dict) -> dict[str, dict]:
-    return {c["metadata"]["nbgrader"]["grade_id"]: c for c in nb["cells"] if "nbgrader" in c["metadata"]}
-
-
-def solved(source_cell: dict) -> str:
-    """A student's finished exercise: the starting code and the reference, as one cell."""
-    lines = "".join(source_cell["source"]).splitlines()
-    return "\n".join(line for line in lines if line.strip() not in (BEGIN, END)) + "\n"
-
-
-def release_course(tmp_path_factory) -> tuple[Path, str]:
-    """Chapter 04 released into a new course directory; the directory and the tool's output."""
+def release_course(tmp_path_factory, chapter: str = "04") -> tuple[Path, str]:
+    """A chapter (04) released into a new course directory; the directory and the tool's output."""
     course_dir = tmp_path_factory.mktemp("course")
-    output = tool("--course-dir", str(course_dir), "release", "04", timeout=600)
+    output = tool("--course-dir", str(course_dir), "release", chapter, timeout=600)
     return course_dir, output
 
 
 def solutions(course_dir: Path) -> dict[str, str]:
-    cells = grade_cells(json.loads((course_dir / "source" / CHAPTER / f"{CHAPTER}.ipynb").read_text()))
-    return {EX1: solved(cells[EX1]), EX2: solved(cells[EX2])}
+    """Each exercise finished: its starting code and the reference, as one cell."""
+    answers = handin.reference_answers(course_dir, CHAPTER)
+    assert sorted(answers) == [EX1, EX2], answers
+    return answers
 
 
-def hand_in(course_dir: Path, students: dict[str, dict[str, str]], submissions: Path) -> Path:
+def hand_in(course_dir: Path, students: dict[str, dict[str, str]], submissions: Path,
+            chapter: str = CHAPTER) -> Path:
     """Write each student's notebook: the release with their answers in the exercise cells."""
-    release = json.loads((course_dir / "release" / CHAPTER / f"{CHAPTER}.ipynb").read_text())
-    for student, answers in students.items():
-        nb = json.loads(json.dumps(release))
-        for grade_id, cell in grade_cells(nb).items():
-            if grade_id in answers:
-                cell["source"] = answers[grade_id]
-        if EXTRA in answers:
-            nb["cells"].append({"cell_type": "code", "execution_count": None, "id": "student-extra",
-                                "metadata": {}, "outputs": [], "source": answers[EXTRA]})
-        folder = submissions / student / CHAPTER
-        folder.mkdir(parents=True)
-        (folder / f"{CHAPTER}.ipynb").write_text(json.dumps(nb, indent=1))
-    return submissions
+    return handin.hand_in(course_dir, chapter, students, submissions)
 
 
-def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int):
-    output = tool("--course-dir", str(course_dir), "grade", str(submissions), "--assignment", CHAPTER,
-                   "--timeout", str(CELL_TIMEOUT_S), "--wall-clock", str(wall_clock), "--out", str(out),
+def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int, chapter: str = CHAPTER,
+          cell_timeout: int = CELL_TIMEOUT_S):
+    output = tool("--course-dir", str(course_dir), "grade", str(submissions), "--assignment", chapter,
+                   "--timeout", str(cell_timeout), "--wall-clock", str(wall_clock), "--out", str(out),
                    timeout=1000)
     with open(out / "grades.csv", newline="") as f:
         rows = {row["student"]: row for row in csv.DictReader(f)}
@@ -117,12 +102,14 @@ def grade(course_dir: Path, submissions: Path, out: Path, wall_clock: int):
     return rows, log, output
 
 
-def grade_students(course_dir: Path, students: dict[str, dict[str, str]], tmp_path_factory):
+def grade_students(course_dir: Path, students: dict[str, dict[str, str]], tmp_path_factory,
+                   chapter: str = CHAPTER, cell_timeout: int = CELL_TIMEOUT_S):
     """Hand in these students' answers and grade them (10 min wall clock each):
     (rows, log, output folder, the tool's output)."""
-    submissions = hand_in(course_dir, students, tmp_path_factory.mktemp("submissions"))
+    submissions = hand_in(course_dir, students, tmp_path_factory.mktemp("submissions"), chapter)
     out = course_dir / "graded"
-    rows, log, output = grade(course_dir, submissions, out, wall_clock=600)
+    rows, log, output = grade(course_dir, submissions, out, wall_clock=600, chapter=chapter,
+                              cell_timeout=cell_timeout)
     return rows, log, out, output
 
 

@@ -168,16 +168,29 @@ def test_watchdog_checker_rejects(rt, wrong, criterion):
 
 
 # ---------------------------------------------------------------------- 02: responsive robot
+# One plausible wrong solution per criterion of check_responsive_robot; each test sees its criterion fail.
+NO_LONG_GAP = "no gap between heartbeats above 0.15 s (beyond the machine's own delays)"
+
+
+def failed_criteria(report) -> list[str]:
+    return [c.name for c in report.criteria if not c.passed]
+
+
+def regroup(robot, heartbeat_group, camera_group, planner_group, planner_period_s=0.5):
+    """Create the robot's three timers again, in the given callback groups (None: the default one)."""
+    for timer in (robot.heartbeat_timer, robot.camera_timer, robot.planner_timer):
+        robot.destroy_timer(timer)
+    robot.heartbeat_timer = robot.create_timer(0.1, robot.heartbeat, callback_group=heartbeat_group)
+    robot.camera_timer = robot.create_timer(0.2, robot.camera, callback_group=camera_group)
+    robot.planner_timer = robot.create_timer(planner_period_s, robot.planner, callback_group=planner_group)
+
+
 class UngroupedRobot(Robot):
     """Wrong: the exercise as given, every timer in the node's default group."""
 
     def __init__(self):
         super().__init__()
-        for timer in (self.heartbeat_timer, self.camera_timer, self.planner_timer):
-            self.destroy_timer(timer)
-        self.heartbeat_timer = self.create_timer(0.1, self.heartbeat)
-        self.camera_timer = self.create_timer(0.2, self.camera)
-        self.planner_timer = self.create_timer(0.5, self.planner)
+        regroup(self, None, None, None)
 
 
 class HeartbeatWithPlanner(Robot):
@@ -185,12 +198,39 @@ class HeartbeatWithPlanner(Robot):
 
     def __init__(self):
         super().__init__()
-        for timer in (self.heartbeat_timer, self.camera_timer, self.planner_timer):
-            self.destroy_timer(timer)
-        shared, camera_group = MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup()
-        self.heartbeat_timer = self.create_timer(0.1, self.heartbeat, callback_group=shared)
-        self.camera_timer = self.create_timer(0.2, self.camera, callback_group=camera_group)
-        self.planner_timer = self.create_timer(0.5, self.planner, callback_group=shared)
+        shared = MutuallyExclusiveCallbackGroup()
+        regroup(self, shared, MutuallyExclusiveCallbackGroup(), shared)
+
+
+class ConfiguredRobot(Robot):
+    """Wrong: the constructor wants an argument the checker cannot know."""
+
+    def __init__(self, planner_period_s):
+        super().__init__()
+
+
+class RarePlanner(Robot):
+    """Wrong: the planner runs every 2 s instead of every 0.5 s, so it blocks less often."""
+
+    def __init__(self):
+        super().__init__()
+        regroup(self, MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup(),
+                MutuallyExclusiveCallbackGroup(), planner_period_s=2.0)
+
+
+class CameraWithoutTheWait(Robot):
+    """Wrong: the camera's 50 ms wait for a frame is gone."""
+
+    def camera(self):
+        self.frames += 1
+
+
+class UngroupedRobotWithoutTheSleep(UngroupedRobot):
+    """Wrong: no callback group at all, and the planner's 0.3 s sleep deleted instead, so that the
+    heartbeat is regular because the planner no longer blocks."""
+
+    def planner(self):
+        self.plans += 1
 
 
 def test_robot_checker_accepts_the_reference(rt):
@@ -198,16 +238,54 @@ def test_robot_checker_accepts_the_reference(rt):
     assert report.passed, report.summary()
 
 
+def test_robot_checker_rejects_a_constructor_with_arguments(rt):
+    report = check_responsive_robot(ConfiguredRobot)
+    assert failed_criteria(report) == ["the node starts and spins"], report.summary()
+
+
+def test_robot_checker_rejects_changed_timer_periods(rt):
+    report = check_responsive_robot(RarePlanner)
+    assert "its timers are the given ones: every 0.1 s, 0.2 s and 0.5 s" in failed_criteria(report)
+    assert "found timers every [0.1, 0.2, 2.0] s" in report.summary()
+
+
+def test_robot_checker_rejects_a_heartbeat_that_never_runs_beside_the_planner(rt):
+    report = check_responsive_robot(HeartbeatWithPlanner)
+    assert "the heartbeat kept beating while the planner blocked" in failed_criteria(report), \
+        report.summary()
+    assert "no beat started while the planner ran" in report.summary()
+
+
 def test_robot_checker_rejects_the_default_group(rt):
     report = check_responsive_robot(UngroupedRobot)
-    assert not report.passed
+    assert NO_LONG_GAP in failed_criteria(report)
     assert "the heartbeat waited for the planner" in report.summary()
 
 
 def test_robot_checker_rejects_a_heartbeat_that_shares_the_planners_group(rt):
     report = check_responsive_robot(HeartbeatWithPlanner)
-    assert not report.passed
+    assert NO_LONG_GAP in failed_criteria(report)
     assert "the heartbeat waited for the planner" in report.summary()
+
+
+def test_robot_checker_rejects_a_camera_that_no_longer_waits(rt):
+    report = check_responsive_robot(CameraWithoutTheWait)
+    assert failed_criteria(report) == ["the camera ran as given: at least 5 times, each taking 50 ms"], \
+        report.summary()
+    assert "a call took less than 50 ms" in report.summary()
+
+
+def test_robot_checker_rejects_deleting_the_planners_sleep(rt):
+    report = check_responsive_robot(UngroupedRobotWithoutTheSleep)
+    assert "the planner ran as given: at least 2 times, each taking 300 ms" in failed_criteria(report), \
+        report.summary()
+    assert "a call took less than 300 ms" in report.summary()
+
+
+def test_robot_checker_hints_do_not_give_the_answer(rt):
+    report = check_responsive_robot(UngroupedRobot)
+    hints = " ".join(c.hint for c in report.criteria).lower()
+    assert "callback group" not in hints and "callback_group" not in hints, hints
 
 
 # ---------------------------------------------------------------------- show_solution finds them

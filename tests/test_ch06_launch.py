@@ -1,16 +1,64 @@
-"""Chapter 06's launch exercise and the rate tuner's record, with real nodes in child processes."""
+"""Chapter 06's launch exercise (every checker criterion fails on a wrong solution), its launch file, and the
+rate tuner's record, with real nodes in child processes."""
 
 from __future__ import annotations
 
+import ast
+
+import pytest
 from rclpy.parameter import Parameter
 
-from course_helpers.chapters.ch06_parameters import NodeLaunch, RateTalker, RateTuner
+from course_helpers import CourseError
+from course_helpers.chapters.ch06_parameters import NodeLaunch, RateTalker, RateTuner, launch_file
 from course_helpers.checks.ch06_parameters import check_conveyor_launch
 from course_helpers.solutions.ch06_parameters import conveyor_launch, conveyor_talks
 
 
-def _failed(report) -> list[str]:
-    return [c.name for c in report.criteria if not c.passed]
+def _failed(report) -> set[str]:
+    return {c.name for c in report.criteria if not c.passed}
+
+
+def _describe_with_a_typo():
+    """Wrong: the counter listens on 'item', one letter short of the sensor's 'items'."""
+    talker, _counter = conveyor_launch()
+    return [talker, NodeLaunch("listener", "counter", "/line1", {"topic": "item", "log_every": 5})]
+
+
+def _describe_with_an_integer_rate():
+    """Wrong: rate_hz=10, an integer for a double parameter: the sensor's process refuses to start."""
+    talker, counter = conveyor_launch()
+    return [NodeLaunch("talker", "belt_sensor", "/line1", {**talker.parameters, "rate_hz": 10}), counter]
+
+
+def _describe_with_a_misspelt_argument():
+    """Wrong: NodeLaunch has no 'node_name' argument; building the description raises."""
+    return [NodeLaunch("talker", node_name="belt_sensor")]
+
+
+def _proof_that_does_not_look(_rt):
+    """Wrong: says yes without looking."""
+    return True
+
+
+# (describe, proof, the criteria that must fail); the description cases start nothing
+CONVEYOR_WRONG = [
+    pytest.param(_describe_with_a_misspelt_argument, conveyor_talks,
+                 {"conveyor_launch() returns the launch description"}, id="describe-raises"),
+    pytest.param(lambda: [], conveyor_talks, {"it describes two nodes as NodeLaunch entries"}, id="empty"),
+    pytest.param(lambda: [NodeLaunch("talker", "belt_sensor"), NodeLaunch("listener", "counter")],
+                 conveyor_talks, {"the nodes are /line1/belt_sensor (talker) and /line1/counter (listener)"},
+                 id="no-namespace"),
+    pytest.param(conveyor_launch, _proof_that_does_not_look,
+                 {"your proof says no when the counter listens on another topic (/line1/items_v2)"},
+                 id="proof-does-not-look"),
+    pytest.param(_describe_with_an_integer_rate, conveyor_talks, {"the two nodes start together"},
+                 id="integer-rate"),
+    pytest.param(_describe_with_a_typo, conveyor_talks,
+                 {"the nodes run with the parameters asked for",
+                  "the counter hears the belt sensor (its process says so)",
+                  "your proof says yes for your running nodes"},  # the reference proof is honest
+                 id="topic-typo"),
+]
 
 
 def test_conveyor_checker_accepts_the_reference_and_leaves_nothing_running(rt):
@@ -19,35 +67,48 @@ def test_conveyor_checker_accepts_the_reference_and_leaves_nothing_running(rt):
     assert report.passed, report.summary()
     assert len(report.criteria) == 7
     assert not [name for name in rt.children() if name.startswith(("ex06_conveyor__", "ex06_miswired__"))]
+    covered = set().union(*(param.values[2] for param in CONVEYOR_WRONG))
+    assert {c.name for c in report.criteria} <= covered
 
 
-def test_conveyor_checker_rejects_a_listener_on_the_wrong_topic(rt):
-    def typo_launch():
-        talker, counter = conveyor_launch()
-        return [talker, NodeLaunch("listener", "counter", "/line1", {"topic": "item", "log_every": 5})]
-
-    report = check_conveyor_launch(typo_launch, conveyor_talks, rt=rt)
+@pytest.mark.parametrize("describe, proof, failing", CONVEYOR_WRONG)
+def test_conveyor_checker_fails_each_criterion_on_a_wrong_solution(rt, describe, proof, failing):
+    report = check_conveyor_launch(describe, proof, rt=rt)
     print(report)
     assert not report.passed
-    assert "the nodes run with the parameters asked for" in _failed(report)
-    assert "the counter hears the belt sensor (its process says so)" in _failed(report)
-    assert "your proof says yes for your running nodes" in _failed(report)  # the reference proof is honest
+    assert failing <= _failed(report), report.summary()
+    assert not [name for name in rt.children() if name.startswith(("ex06_conveyor__", "ex06_miswired__"))]
 
 
-def test_conveyor_checker_rejects_a_proof_that_does_not_look(rt):
-    report = check_conveyor_launch(conveyor_launch, lambda _rt: True, rt=rt)
-    print(report)
-    assert _failed(report) == [
-        "your proof says no when the counter listens on another topic (/line1/items_v2)"]
-
-
-def test_conveyor_checker_explains_a_description_that_is_not_one(rt):
-    report = check_conveyor_launch(lambda: [], conveyor_talks, rt=rt)
-    assert _failed(report) == ["it describes two nodes as NodeLaunch entries"]
+def test_conveyor_checker_stops_at_a_wrong_description_before_starting_anything(rt):
     unnamespaced = [NodeLaunch("talker", "belt_sensor"), NodeLaunch("listener", "counter")]
     report = check_conveyor_launch(lambda: unnamespaced, conveyor_talks, rt=rt)
-    assert _failed(report) == ["the nodes are /line1/belt_sensor (talker) and /line1/counter (listener)"]
-    assert not rt.children()  # nothing starts before the description is right
+    assert _failed(report) == {"the nodes are /line1/belt_sensor (talker) and /line1/counter (listener)"}
+    assert not rt.children()
+    hints = " ".join(c.hint for c in report.criteria)
+    assert "belt_sensor" not in hints and "NodeLaunch(" not in hints, "hints point to the text"
+
+
+def test_launch_file_is_the_real_launch_description_of_the_entries():
+    text = launch_file([NodeLaunch("talker", "talker", namespace="robot2", params_file="config/robots.yaml",
+                                   parameters={"rate_hz": 5.0}),
+                        NodeLaunch("listener", "counter", namespace="/line1")], package="conveyor")
+    tree = ast.parse(text)
+    imports = {(node.module, alias.name) for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+               for alias in node.names}
+    assert imports == {("launch", "LaunchDescription"), ("launch_ros.actions", "Node")}
+    [function] = [node for node in tree.body if isinstance(node, ast.FunctionDef)]
+    assert function.name == "generate_launch_description"
+    calls = [node for node in ast.walk(function) if isinstance(node, ast.Call) and node.func.id == "Node"]
+    nodes = [{k.arg: ast.literal_eval(k.value) for k in call.keywords} for call in calls]
+    assert nodes == [
+        {"package": "conveyor", "executable": "talker", "name": "talker", "namespace": "/robot2",
+         "parameters": ["config/robots.yaml", {"rate_hz": 5.0}]},
+        {"package": "conveyor", "executable": "listener", "name": "counter", "namespace": "/line1"},
+    ]
+    assert "Node(" not in launch_file([]).split("LaunchDescription([")[1]
+    with pytest.raises(CourseError, match="kind must be one of"):
+        launch_file([NodeLaunch("camera", "front")])
 
 
 def test_rate_tuner_record_shows_the_rate_set_and_the_rate_measured_for_it(rt):

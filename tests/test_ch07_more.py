@@ -29,9 +29,9 @@ def test_discovery_comparison_uses_two_own_domains_and_bounds_the_tuned_wait(rt)
         assert all(t.create_node_s > 0 for t in comparison.timings[setting])
     assert max(comparison.seconds("course")) < 1.0  # bounded by the 0.1 s period, plus load
     assert max(comparison.seconds("Fast DDS default")) < 2 * DEFAULT_ANNOUNCEMENT_S
-    domains = dds.tuning._comparison_domains()
+    domains = dds.discovery_settings._comparison_domains()
     assert len(set(domains)) == 2 and rt.domain.domain_id not in domains
-    assert dds.tuning._comparison_domains() == domains  # re-running reuses them
+    assert dds.discovery_settings._comparison_domains() == domains  # re-running reuses them
     assert not rt.children()  # anchors and probes are stopped
 
 
@@ -57,7 +57,7 @@ def test_announcements_of_a_lone_participant_are_counted_and_the_ports_freed(rt)
     assert traffic.ports_reached and traffic.ports_reached[0] == 1
     assert traffic.datagram_bytes > 100
     assert traffic.period_s is not None and traffic.period_s < DEFAULT_ANNOUNCEMENT_S / 3
-    domain = dds.tuning._comparison_domains()[0]
+    domain = dds.discovery_settings._comparison_domains()[0]
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:  # the listening sockets are closed
         sock.bind(("127.0.0.1", dds.discovery_port(domain, traffic.ports_reached[0])))
     with pytest.raises(CourseError):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import threading
 
 import pytest
@@ -152,6 +153,14 @@ def test_program_processes_die_with_the_layer_and_run_reports_a_timeout(tmp_path
     assert (code, output) == (0, "one\ntwo")
     with pytest.raises(CourseError, match="took longer than 0.5 s"):
         processes.run(["sleep", "5"], timeout=0.5)
+
+
+def test_run_works_in_a_process_that_is_itself_a_course_child(monkeypatch):
+    """A graded kernel (and any child of the process layer) carries the PID of the process that started
+    it in COURSE_PARENT_PID: a command that run() starts must still run, not take that PID for its own
+    parent's, find it gone, and exit 0 without doing anything (a colcon build that built nothing)."""
+    monkeypatch.setenv(processes.PARENT_ENV, str(os.getppid()))
+    assert processes.run(["sh", "-c", "echo built"]) == (0, "built")
 
 
 def test_waiting_names_what_it_waited_for():

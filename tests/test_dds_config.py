@@ -66,3 +66,37 @@ def test_the_tuned_settings_are_in_the_profile_and_the_defaults_are_not():
 def test_an_unknown_transport_is_named():
     with pytest.raises(ValueError, match=r"'SHM' and/or 'UDPv4', got \['TCPv4'\]"):
         dds_config.profile_xml(("TCPv4",))
+
+
+def test_a_short_lease_profile_is_private_loopback_only_and_holds_the_lease(rt, tmp_path, monkeypatch):
+    """Chapter 01's short lease: written into the kernel's private folder (a name another user made
+    first at the old shared path changes nothing), the course's localhost set-up otherwise, and a
+    killed child leaves the graph after its 2 s lease instead of Fast DDS's 20 s."""
+    import os
+    import stat
+    import tempfile
+
+    from course_helpers.chapters.ch01_architecture import short_lease_env
+
+    private = rt.log_dir  # made before the temporary folder is redirected
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # a shared temporary folder of the test's own
+    # what another user could have created first at the old, predictable path
+    os.mkdir(tmp_path / f"ros2-course-lease-{os.getuid()}-2.000000000.xml")
+    env = short_lease_env(2.0)
+    monkeypatch.undo()
+    path = env[dds_config.PROFILE_ENV]
+    folder = os.stat(private)
+    assert os.path.dirname(path) == private
+    assert folder.st_uid == os.getuid() and stat.S_IMODE(folder.st_mode) == 0o700
+    setup = _setup_of(rt, "lease_child", env)
+    assert setup["profile"].startswith("course_localhost_lease_") and set(setup["udp"]) == {"127.0.0.1"}
+    rt.wait_until(lambda: "/setup_reporter" in rt.graph_nodes(), 20, "the kernel to find the lease child")
+    rt.children()["lease_child"].kill()  # a crash: no goodbye, so only the lease removes it
+    assert rt.poll_until(lambda: "/setup_reporter" not in rt.graph_nodes(), 10.0), (
+        "a killed child with a 2 s lease stayed in the graph for 10 s")
+
+
+@pytest.mark.parametrize("lease", [0.1, 61, "2", True])
+def test_a_lease_outside_its_range_is_named(lease):
+    with pytest.raises(dds_config.CourseError, match=r"lease_s must be 0.5..60 seconds"):
+        dds_config.short_lease_env("/nonexistent", lease)

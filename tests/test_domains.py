@@ -248,3 +248,18 @@ def test_a_domain_set_by_the_user_is_not_a_reservation():
 def test_a_bad_domain_id_is_named():
     with pytest.raises(domains.CourseError, match="ROS_DOMAIN_ID must be a whole number from 0 to 232"):
         domains.parse_domain_id("300")
+
+
+def test_the_holders_of_domains_are_listed_with_user_pid_and_command():
+    """``python -m course_helpers.core.domains``: what an instructor runs to see who holds what."""
+    holder = Holder(None, domains.reserve_domain)
+    try:
+        out = subprocess.run([sys.executable, "-m", "course_helpers.core.domains"], capture_output=True,
+                             text=True, check=True, timeout=60).stdout
+        user = pwd.getpwuid(os.getuid()).pw_name
+        assert f"domain {holder.domain:>3}  {user} {holder.pid} " in out, out
+    finally:
+        holder.kill()
+    out = subprocess.run([sys.executable, "-m", "course_helpers.core.domains"], capture_output=True,
+                         text=True, check=True, timeout=60).stdout
+    assert f"domain {holder.domain:>3} " not in out, out

@@ -220,3 +220,78 @@ def test_plots_show_the_numbers_of_finished_runs():
     assert "nothing lost" not in texts
     still = draw_results([("a run", done)], title="test")
     assert len(still.axes) == 3
+
+
+# ---------------------------------------------------------------------- how a run ended, what else ran
+def test_run_both_runs_a_two_run_preset_and_run_runs_the_panel_once_it_changed(rt):
+    lab = qos_lab()
+    try:
+        name = "late joiner: volatile vs transient_local"
+        button = next(b for b in lab.preset_buttons if b.description == name)
+        button.click()
+        assert lab.run_button.description == "Run both" and "Run both" in lab.status.value
+        lab.run_button.click()  # the preset's two runs, B first, as Compare would
+        assert lab.wait(60)
+        assert [r.config for r in lab.results] == preset(name)
+        assert lab.run_button.description == "Run both"  # the panel still shows the preset
+        lab.durability.value = "volatile"  # now the panel shows another configuration ...
+        assert lab.run_button.description == "Run"
+        lab.run_button.click()  # ... and Run runs that one alone
+        assert lab.wait(60)
+        assert len(lab.results) == 3 and lab.results[-1].config == lab.config()
+        assert lab.config_b == preset(name)[0]  # Compare still has the preset's B
+    finally:
+        lab.close()
+
+
+def test_a_run_that_ends_with_samples_in_flight_says_so_first(rt, monkeypatch):
+    from course_helpers.chapters.ch08b_lab import run as run_module
+    from course_helpers.chapters.ch08b_lab.table import results_table_html
+
+    # A subscriber that needs 20 ms per sample gets 100 samples a second for 1 s. With the backlog
+    # limit cut to 0.5 s, the run ends with a queue that would take at least a second to drain.
+    monkeypatch.setattr(run_module, "_BACKLOG_LIMIT_S", 0.5)
+    config = ExperimentConfig(reliability="reliable", depth=100, rate_hz=100, processing_ms=20,
+                              duration_s=1.0, label="slow reader")
+    lab = qos_lab()
+    try:
+        lab.start([config])
+        assert lab.wait(60)
+        (result,) = lab.results
+        print(result.summary())
+        assert result.in_flight > 0 and not result.finished and not result.stopped
+        assert result.delivered + result.in_flight == result.published and result.lost_nothing
+        assert result.summary().startswith("slow reader: NOT FINISHED, ")  # the headline
+        assert "queued for a subscriber that needs 20 ms per sample" in result.summary()
+        assert "did NOT FINISH" in lab.status.value  # the panel's headline
+        assert "NOT FINISHED (ended early)" in results_table_html([result])
+        figure = ResultsFigure().draw([result])
+        texts = [artist.get_text() for artist in figure._dynamic if hasattr(artist, "get_text")]
+        assert f"NOT FINISHED: {result.in_flight} in flight, not lost" in texts
+    finally:
+        lab.close()
+
+
+def test_machine_load_counts_other_processes_cpu_and_says_when_it_was_busy():
+    import subprocess
+    import sys
+
+    from course_helpers.chapters.ch08b_lab.machine_load import LoadMeter, MachineLoad
+
+    quiet = MachineLoad(cores=4, seconds=2.0, others_cores=0.1, load_per_core=0.2)
+    assert not quiet.busy and quiet.describe().startswith("The machine was quiet")
+    shared = MachineLoad(cores=4, seconds=2.0, others_cores=0.2, load_per_core=0.3, kernels=(11, 12),
+                         children=(13,))
+    assert not shared.busy and "2 other course kernels" in shared.describe()
+    assert MachineLoad(cores=2, seconds=2.0, others_cores=0.1, load_per_core=1.5).busy  # long run queue
+    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        meter = LoadMeter()
+        time.sleep(1.5)
+        load = meter.finish()
+    finally:
+        hog.kill()
+        hog.wait()
+    print(load.describe())
+    assert load.others_cores >= 0.5 and load.busy  # the hog alone keeps a core busy when it gets one
+    assert "busy" in load.describe() and "Running panel" in load.describe()

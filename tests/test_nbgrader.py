@@ -28,9 +28,11 @@ from .nbgrader_support import (
     points,
     reason,
     release_course,
+    results,
     solutions,
     source,
     student_build,
+    verdict,
 )
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
@@ -110,6 +112,28 @@ def test_scores_reasons_and_feedback(graded):
     # a process started outside the exercises outlives the kernel: the sweep kills it and says so
     assert "killed 1 process(es) left after the run" in rows["bob"]["notes"]
     assert "sleep 700" in rows["bob"]["notes"]
+
+
+def test_grade_alls_verdict_on_this_grade_table(course, graded):
+    """``grade-all``'s verdict (``grading.verdict``) on this real table: alice's reference and bob's
+    starting code are right; carol taken for a reference, or alice for starting code, is caught."""
+    course_dir, _ = course
+    rows, _, out, _ = graded
+    release = grade_cells(json.loads((course_dir / "release" / CHAPTER / f"{CHAPTER}.ipynb").read_text()))
+    tests = (EX1 + "_check", EX2 + "_check")
+    max_points = {g: float(release[g]["metadata"]["nbgrader"]["points"]) for g in tests}
+    table = results.read_csv(out / "grades.csv", max_points)
+
+    def problems(starting: str, reference: str) -> list[str]:
+        return verdict.problems(verdict.judge(CHAPTER, max_points, table, starting, reference))
+
+    assert problems(starting="bob", reference="alice") == []
+    hung = problems(starting="bob", reference="carol")
+    assert len(hung) == 1 and hung[0].startswith(f"{CHAPTER}, {EX1}: the reference scored 0/"), hung
+    assert "CellTimeoutError" in hung[0]
+    assert problems(starting="alice", reference="alice") == [
+        f"{CHAPTER}, {ex}: the starting code was not marked down ({m:g}/{m:g}): the checker accepts it"
+        for ex, m in ((EX1, max_points[tests[0]]), (EX2, max_points[tests[1]]))]
 
 
 def test_nothing_of_a_run_is_left(graded):

@@ -6,10 +6,15 @@ real kernel; the course then gets a new commit (a changed cell, a new cell, a re
 cell the student changed too, a changed YAML file, a new notebook); the student pulls and syncs
 again. Their edits and outputs must still be there, the course's changes must have arrived, the
 one cell both changed must show both versions after a note, and a further sync changes nothing.
+
+Saved or live: every output the copy receives from the course starts with a note saying it is the
+reference run's; running a cell replaces it, so an output without the note is the student's own.
+A copy made before the notes existed gets them on the outputs still exactly the reference run's.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import shutil
@@ -26,9 +31,34 @@ TOOL = REPO / "tools" / "working_copy.py"
 WELCOME = "00_welcome.ipynb"
 # Cells of notebook 00 (stable ids): the title, a section the student leaves alone, the cell
 # after which both the student and the course add a cell, a code cell both change, the quiz heading.
-TITLE, PICTURE, WAITING, REMOVE_ALL, QUIZ = "a81201af", "9ebc560f", "8566b6b5", "4cca0f94", "e00b61ab"
+TITLE, PICTURE, WAITING, REMOVE_ALL, QUIZ = "a81201af", "9ebc560f", "5aef8827", "4cca0f94", "e00b61ab"
+DIAGRAM = "b2f81273"  # a code cell that needs no ROS (it draws the runtime diagram): the student runs it
 STUDENT_CELL = "my-own-cell"
 COURSE_CELL = "course-new-cell"
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("working_copy", TOOL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+working_copy = _tool()
+
+
+def _as_received(path: Path) -> bytes:
+    """A course file as a working copy receives it (notebooks: the reference outputs marked)."""
+    if path.suffix != ".ipynb":
+        return path.read_bytes()
+    with open(path, encoding="utf-8") as handle:
+        return working_copy._dumps(working_copy.student_edition(json.load(handle)))
+
+
+def _reference_cells(path: Path) -> dict[str, bool]:
+    """{code cell id: its outputs are marked as the reference run's} for cells with outputs."""
+    return {c["id"]: working_copy.is_marked(c) for c in _cells(path)
+            if c["cell_type"] == "code" and c.get("outputs")}
 
 
 def _git(cwd: Path, *args: str) -> str:
@@ -91,9 +121,15 @@ def test_edits_survive_a_course_update(clones, tmp_path):
                           for p in (install / "notebooks").rglob("*")
                           if p.is_file() and p.name != "conftest.py" and "__pycache__" not in p.parts)
     for name in course_files:
-        assert (work / name).read_bytes() == (install / "notebooks" / name).read_bytes(), name
+        assert (work / name).read_bytes() == _as_received(install / "notebooks" / name), name
         assert (work / ".course-base" / name).is_file(), name
     assert not (work / "conftest.py").exists()
+    # Saved or live: every saved output is marked as the reference run's, and no cell has a count.
+    marked = _reference_cells(work / WELCOME)
+    assert DIAGRAM in marked and len(marked) >= 10 and all(marked.values()), marked
+    assert all(c.get("execution_count") is None for c in _cells(work / WELCOME) if c["cell_type"] == "code")
+    first = _by_id(work / WELCOME)[DIAGRAM]["outputs"][0]
+    assert "reference run" in first["data"]["text/plain"] and "run this cell" in first["data"]["text/plain"]
 
     # 2. The student edits notebook 00 and runs a cell of their own in a real kernel.
     def student_edits(notebook):
@@ -108,10 +144,14 @@ def test_edits_survive_a_course_update(clones, tmp_path):
                                 resources={"metadata": {"path": str(work)}})
         with client.setup_kernel():
             client.execute_cell(mine, _index(notebook, STUDENT_CELL))
+            diagram = _index(notebook, DIAGRAM)  # a course cell the student runs: its outputs become theirs
+            client.execute_cell(notebook.cells[diagram], diagram)
 
     _edit(work / WELCOME, student_edits)
     ran = _by_id(work / WELCOME)[STUDENT_CELL]
     assert _source({"source": ran["outputs"][0]["text"]}) == "my answer is 42\n", ran["outputs"]
+    drawn = _by_id(work / WELCOME)[DIAGRAM]
+    assert not working_copy.is_marked(drawn) and drawn["execution_count"] == 2  # live: the note is gone
 
     # 3. The course changes: one commit upstream, pulled into the student's install.
     def course_update(notebook):
@@ -141,6 +181,9 @@ def test_edits_survive_a_course_update(clones, tmp_path):
     # the student's edits and outputs are still there
     assert _source(merged[TITLE]).endswith("*My notes: read this twice.*")
     assert merged[STUDENT_CELL]["outputs"] == ran["outputs"]
+    assert merged[DIAGRAM]["outputs"] == drawn["outputs"]  # the student's run stays unmarked
+    assert [cell for cell, is_marked in _reference_cells(work / WELCOME).items() if not is_marked] == [
+        DIAGRAM, STUDENT_CELL]  # every other saved output is still marked as the reference run's
     # the course's changes arrived: a changed cell, a new cell in its place, a removed cell
     assert _source(merged[PICTURE]).endswith("Updated by the course.")
     assert ids[ids.index(WAITING) + 1: ids.index(WAITING) + 3] in (
@@ -158,7 +201,7 @@ def test_edits_survive_a_course_update(clones, tmp_path):
     assert (work / "config" / "talker.yaml").read_text().endswith("# updated by the course\n")
     for name in course_files:
         if name != WELCOME:
-            assert (work / name).read_bytes() == (install / "notebooks" / name).read_bytes(), name
+            assert (work / name).read_bytes() == _as_received(install / "notebooks" / name), name
 
     # 5. Nothing new upstream: a sync changes nothing (the student may keep working).
     before = {p: p.read_bytes() for p in work.rglob("*") if p.is_file()}
@@ -175,7 +218,7 @@ def test_edits_survive_a_course_update(clones, tmp_path):
     _sync(install, work)
     ids_after = [cell["id"] for cell in _cells(work / WELCOME)]
     assert note["id"] not in ids_after and theirs["id"] not in ids_after and REMOVE_ALL in ids_after
-    assert (work / "03_topics.ipynb").read_bytes() == (install / "notebooks" / "03_topics.ipynb").read_bytes()
+    assert (work / "03_topics.ipynb").read_bytes() == _as_received(install / "notebooks" / "03_topics.ipynb")
 
 
 def test_a_changed_data_file_is_never_overwritten(clones, tmp_path):
@@ -191,3 +234,52 @@ def test_a_changed_data_file_is_never_overwritten(clones, tmp_path):
     assert "robots.yaml.course-update" in report, report
     assert (work / "config" / "robots.yaml").read_text() == "# mine\n"
     assert (work / "config" / "robots.yaml.course-update").read_text().endswith("# course\n")
+
+
+def test_an_older_copy_gets_the_reference_outputs_marked_and_keeps_the_students(clones, tmp_path):
+    _upstream, install = clones
+    course, work = install / "notebooks", tmp_path / "work"
+    # A copy made before the notes existed: the course's files as they are, in the copy and its base.
+    for path in course.rglob("*"):
+        relative = path.relative_to(course)
+        if path.is_file() and path.name != "conftest.py" and "__pycache__" not in relative.parts:
+            for target in (work / relative, work / ".course-base" / relative):
+                target.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(path, target)
+
+    def student_work(notebook):  # edits a cell, runs a course cell and a cell of their own
+        notebook.cells[_index(notebook, TITLE)].source += "\n\nMine."
+        mine = nbformat.v4.new_code_cell("print('mine')")
+        mine.id = STUDENT_CELL
+        notebook.cells.insert(_index(notebook, WAITING) + 1, mine)
+        client = NotebookClient(notebook, kernel_name="python3", timeout=60,
+                                resources={"metadata": {"path": str(work)}})
+        with client.setup_kernel():
+            # their own cell first: the diagram's count (2) then differs from the reference run's (1)
+            for cell_id in (STUDENT_CELL, DIAGRAM):
+                client.execute_cell(notebook.cells[_index(notebook, cell_id)], _index(notebook, cell_id))
+
+    _edit(work / WELCOME, student_work)
+    before = _by_id(work / WELCOME)
+    assert not any(_reference_cells(work / WELCOME).values())  # nothing is marked yet
+
+    report = _sync(install, work)
+    assert "00_welcome.ipynb: updated (" in report and "marked as the reference run's" in report, report
+    after = _by_id(work / WELCOME)
+    marks = _reference_cells(work / WELCOME)
+    unmarked = sorted(cell for cell, is_marked in marks.items() if not is_marked)
+    assert unmarked == sorted([DIAGRAM, STUDENT_CELL])
+    for cell_id in (DIAGRAM, STUDENT_CELL):  # the student's runs: untouched
+        assert after[cell_id]["outputs"] == before[cell_id]["outputs"], cell_id
+        assert after[cell_id]["execution_count"] == before[cell_id]["execution_count"], cell_id
+    assert _source(after[TITLE]).endswith("Mine.")
+    for cell_id, is_marked in marks.items():  # the reference run's: the same outputs behind the note
+        if is_marked:
+            assert after[cell_id]["outputs"][1:] == working_copy.student_edition(
+                {"cells": [before[cell_id]]})["cells"][0]["outputs"][1:], cell_id
+    # Notebooks the student never opened are now exactly what a new copy receives.
+    assert (work / "03_topics.ipynb").read_bytes() == _as_received(course / "03_topics.ipynb")
+    # A second sync changes nothing.
+    files = {p: p.read_bytes() for p in work.rglob("*") if p.is_file()}
+    _sync(install, work)
+    assert files == {p: p.read_bytes() for p in work.rglob("*") if p.is_file()}

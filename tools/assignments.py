@@ -5,6 +5,7 @@ Usage (from the repository root, with the course's venv)::
     python tools/assignments.py source  [CHAPTER ...]     # assignments/source/<chapter>/ only
     python tools/assignments.py release [CHAPTER ...]     # source, validated, then the release
     python tools/assignments.py grade SUBMISSIONS --assignment 04_services
+    python tools/assignments.py grade-all [CHAPTER ...]   # maintainers: release, grade, check
 
 CHAPTER is a prefix of a notebook's name (``04`` or ``04_services``); no chapter means every
 chapter with a graded exercise. ``release`` runs the instructor source once with the student
@@ -20,6 +21,11 @@ a timeout per cell and a wall clock for the whole run (:mod:`grading.isolation`,
 :mod:`grading.guarded`); what it leaves running is killed and noted. It writes
 ``graded/<assignment>/grades.csv`` (points and the reason for every lost point),
 ``feedback/<student>.html`` (nbgrader's feedback) and ``log.json`` under the course directory.
+
+``grade-all`` proves the whole chain on every chapter (in ``build/grade-all``): it releases them, hands
+in each one's untouched starting code and its reference (:mod:`grading.handin`), grades both with
+``grade`` and checks the table (:mod:`grading.verdict`): the reference earns every point, the starting
+code less on every exercise. Exit status 1, naming the chapter and exercise, when it does not.
 """
 
 from __future__ import annotations
@@ -34,13 +40,15 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from grading import isolation, results, source, student_build  # noqa: E402
+from grading import handin, isolation, results, source, student_build, verdict  # noqa: E402
 
 COURSE_DIR = source.REPO / "assignments"
+GRADE_ALL_DIR = source.REPO / "build" / "grade-all"  # generated, not committed
 # nbgrader runs the venv's `alembic` for its gradebook: the venv's bin/ must be on PATH even
 # when this script is run as .venv/bin/python without activating the venv.
 os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
 AUTOGRADE_ONE = Path(__file__).resolve().parent / "grading" / "autograde_one.py"
+PROGRESS_EVERY_S = 15  # a line at least this often while a submission is graded
 SUMMARY_PREFIX = ": "  # CheckReport.summary(): "<exercise>: PASSED (k/n criteria)"
 
 
@@ -123,12 +131,15 @@ def validate(chapter, course_dir: Path, build: Path, timeout: int) -> dict[str, 
     return points
 
 
-def release(chapters: list[str] | None, course_dir: Path, timeout: int) -> None:
+def release_chapters(chapters: list[str] | None, course_dir: Path, timeout: int):
+    """Validate and release the chosen chapters: (released names, seconds each took to validate,
+    why the others were not released). Raises ``SystemExit`` if nbgrader fails or a solution leaks."""
     build = student_build.build(course_dir / "student_build")
     print(student_build.check_imports(build).strip())
     made = make_sources(chapters, course_dir)
-    points, failed = {}, []
+    points, seconds, failed = {}, {}, []
     for chapter in made:
+        print(f"{chapter.name}: running the instructor source in a fresh kernel ...", flush=True)
         started = time.monotonic()
         try:
             points[chapter.name] = validate(chapter, course_dir, build, timeout)
@@ -136,8 +147,10 @@ def release(chapters: list[str] | None, course_dir: Path, timeout: int) -> None:
             failed.append(str(exc))
             print(f"NOT RELEASED: {exc}")
             continue
+        finally:
+            seconds[chapter.name] = time.monotonic() - started
         print(f"{chapter.name}: reference solutions pass, points {points[chapter.name]} "
-              f"({time.monotonic() - started:.0f} s)")
+              f"({seconds[chapter.name]:.0f} s)")
     made = [c for c in made if c.name in points]
     if made:
         make_sources([c.name for c in made], course_dir, points)
@@ -151,6 +164,11 @@ def release(chapters: list[str] | None, course_dir: Path, timeout: int) -> None:
     if leaks:
         raise SystemExit("reference solutions found in the release:\n  " + "\n  ".join(leaks))
     print(f"no reference solution in {course_dir / 'release'} or {build}")
+    return [c.name for c in made], seconds, failed
+
+
+def release(chapters: list[str] | None, course_dir: Path, timeout: int) -> None:
+    _, _, failed = release_chapters(chapters, course_dir, timeout)
     if failed:
         raise SystemExit("not released:\n  " + "\n  ".join(failed))
 
@@ -176,10 +194,39 @@ def _submission(folder: Path, assignment: str) -> Path | None:
     return None
 
 
+def _wait_showing_progress(child, record: str, student: str, wall_clock: int) -> bool:
+    """Wait for a grading process to exit, printing each test cell as it starts and, at least every
+    PROGRESS_EVERY_S, the cell being run (from the run record GuardedExecute keeps); False if the wall
+    clock ran out first."""
+    from course_helpers.core.waiting import poll_until
+
+    started, shown, said = time.monotonic(), [], 0.0
+
+    def finished() -> bool:
+        nonlocal said
+        try:
+            now = json.loads(Path(record).read_text())
+        except (OSError, ValueError):  # not written yet
+            now = {}
+        seconds = time.monotonic() - started
+        for test in now.get("tests_started", [])[len(shown):]:
+            shown.append(test)
+            said = seconds
+            print(f"    {student}: {test['test']} (cell {test['cell'] + 1} of {test['cells']}) "
+                  f"started after {seconds:.0f} s", flush=True)
+        if seconds - said >= PROGRESS_EVERY_S and child.alive:
+            said = seconds
+            running = now.get("running")
+            where = f"cell {running['cell'] + 1} of {running['cells']}" if running else "starting the kernel"
+            print(f"    {student}: {where} after {seconds:.0f} s", flush=True)
+        return not child.alive
+
+    return poll_until(finished, wall_clock, period=1.0)
+
+
 def grade_one(course_dir: Path, assignment: str, student: str, sub: Path, out: Path, build: Path,
               timeout: int, wall_clock: int, max_points: dict[str, float]):
     """Autograde one submission in a process of its own; sweep afterwards; return its results and log."""
-    from course_helpers import WaitTimeout
     from course_helpers.core import processes
 
     target = course_dir / "submitted" / student / assignment
@@ -196,19 +243,19 @@ def grade_one(course_dir: Path, assignment: str, student: str, sub: Path, out: P
     # file open for as long as it likes without keeping the grader waiting.
     child = processes.start(f"grade-{student}", argv, group="grading", env=env, cwd=str(course_dir),
                             channel=False)
-    try:
-        code = child.wait_for_exit(wall_clock, f"the grading of {student}")
-        if code != 0:
-            failure = "nbgrader could not grade it: " + " / ".join(child.log().strip().splitlines()[-3:])
-    except WaitTimeout:
+    if _wait_showing_progress(child, run.record, student, wall_clock):
+        if child.returncode != 0:
+            failure = f"{results.NOT_GRADED}: " + " / ".join(child.log().strip().splitlines()[-3:])
+    else:
         child.kill()
-        failure = f"grading took longer than the wall clock of {wall_clock} s and was stopped"
+        failure = f"{results.PAST_WALL_CLOCK} of {wall_clock} s and was stopped"
     seconds = time.monotonic() - started
     (out / "logs").mkdir(parents=True, exist_ok=True)
     (out / "logs" / f"{student}.log").write_text(child.log(), encoding="utf-8")
     child.stop()
-    left = isolation.sweep(run.marker)
     record = json.loads(Path(run.record).read_text()) if Path(run.record).exists() else {}
+    # what the student's kernel left running: killed by autograde_one before it exited, or now
+    left = record.get("killed_after_run", []) + isolation.sweep(run.marker)
     domains = record.get("domains", [])
     held = isolation.domains_left(domains, run.marker)
     tmp_removed = isolation.remove_tmp(run)
@@ -252,6 +299,7 @@ def grade(submissions: Path, assignment: str, course_dir: Path, timeout: int, wa
         if sub is None:
             print(f"{folder.name}: no {assignment}.ipynb, skipped")
             continue
+        print(f"{folder.name}: grading {assignment} ...", flush=True)
         result, entry = grade_one(course_dir, assignment, folder.name, sub, out, build, timeout, wall_clock,
                                   max_points)
         table.append(result)
@@ -266,9 +314,76 @@ def grade(submissions: Path, assignment: str, course_dir: Path, timeout: int, wa
     return path
 
 
+# ---------------------------------------------------------------------- grade-all (maintainers)
+# What grade-all generates in its course directory, removed before it starts, so each run starts afresh.
+GENERATED = ("source", "release", "student_build", "submitted", "autograded", "feedback", "graded",
+             "handed_in", "gradebook.db", "grade-all.md")
+
+
+def _minutes(seconds: float) -> str:
+    return f"{int(seconds // 60)} min {seconds % 60:02.0f} s"
+
+
+def grade_all(chapters: list[str] | None, course_dir: Path, timeout: int, wall_clock: int,
+              release_timeout: int) -> int:
+    """Release the chosen chapters (all with a graded exercise by default), grade each one's untouched
+    starting code and then its reference, and judge the grade tables (:mod:`grading.verdict`).
+    Prints the table and each chapter's time; returns 1 if anything is wrong, with what and where."""
+    if course_dir == COURSE_DIR.resolve():
+        raise SystemExit(f"grade-all grades made-up students: give it a course directory other than "
+                         f"{course_dir}")
+    for name in GENERATED:
+        path = course_dir / name
+        shutil.rmtree(path) if path.is_dir() else path.unlink(missing_ok=True)
+    started = time.monotonic()
+    released, validation, not_released = release_chapters(chapters, course_dir, release_timeout)
+    problems = [f"not released: {why}" for why in not_released]
+    lines, notes, grading = [], [], {}
+    for number, assignment in enumerate(released, 1):
+        print(f"\n[{number}/{len(released)}] {assignment}: grading the starting code, then the reference",
+              flush=True)
+        began = time.monotonic()
+        folder = course_dir / "handed_in" / assignment
+        try:
+            students = {verdict.STARTING: {},
+                        verdict.REFERENCE: handin.reference_answers(course_dir, assignment)}
+            handin.hand_in(course_dir, assignment, students, folder)
+            max_points = _max_points(course_dir, assignment)
+            graded = results.read_csv(grade(folder, assignment, course_dir, timeout, wall_clock, None),
+                                      max_points)
+            judged = verdict.judge(assignment, max_points, graded)
+            notes += verdict.notes(assignment, graded)
+        except (Exception, SystemExit) as exc:  # one chapter's trouble never stops the others
+            judged = [verdict.Line(assignment, "-", 0, problems=[f"{assignment}: grading stopped: {exc}"])]
+        grading[assignment] = time.monotonic() - began
+        lines += judged
+        print(verdict.table(judged))
+        print(f"{assignment}: {'FAILED' if verdict.problems(judged) else 'graded right'} "
+              f"(validation {validation[assignment]:.0f} s, grading {grading[assignment]:.0f} s)", flush=True)
+    problems += verdict.problems(lines)
+    times = ["| assignment | validation | grading (2 submissions) | total |", "|---|---:|---:|---:|"]
+    for name, seconds in validation.items():
+        graded = grading.get(name, 0.0)
+        times.append(f"| {name} | {seconds:.0f} s | {graded:.0f} s | {seconds + graded:.0f} s |")
+    total = _minutes(time.monotonic() - started)
+    summary = "\n\n".join([
+        f"grade-all: {len(released)} of {len(validation)} chapter(s) released and graded, {total} in all",
+        verdict.table(lines) if lines else "(no chapter was graded)",
+        "\n".join(times),
+        *(["Notes on the runs (not failures):\n" + "\n".join(f"- {n}" for n in notes)] if notes else []),
+        ("PROBLEMS:\n" + "\n".join(f"- {p}" for p in problems)) if problems else
+        "Every reference earned full marks and every starting code was marked down on every exercise."])
+    (course_dir / "grade-all.md").write_text(summary + "\n", encoding="utf-8")
+    print("\n" + summary + f"\n\n(also in {course_dir / 'grade-all.md'}; grade tables and feedback in "
+          f"{course_dir / 'graded'})")
+    return 1 if problems else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Graded assignments with nbgrader, from the notebooks.")
-    parser.add_argument("--course-dir", type=Path, default=COURSE_DIR, help="nbgrader course directory")
+    parser.add_argument("--course-dir", type=Path, default=None,
+                        help=f"nbgrader course directory (default: {COURSE_DIR}; "
+                             f"for grade-all {GRADE_ALL_DIR})")
     commands = parser.add_subparsers(dest="command", required=True)
     p = commands.add_parser("source", help="write the instructor source from the notebooks")
     p.add_argument("chapters", nargs="*")
@@ -281,8 +396,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--timeout", type=int, default=120, help="seconds per cell")
     p.add_argument("--wall-clock", type=int, default=900, help="seconds per submission")
     p.add_argument("--out", type=Path, default=None, help="default: <course dir>/graded/<assignment>")
+    p = commands.add_parser("grade-all", help="maintainers: release, then grade the reference and the "
+                                              "starting code of every chapter and check the scores")
+    p.add_argument("chapters", nargs="*")
+    p.add_argument("--timeout", type=int, default=120, help="seconds per cell of a graded submission")
+    p.add_argument("--wall-clock", type=int, default=900, help="seconds per submission")
+    p.add_argument("--release-timeout", type=int, default=180, help="seconds per cell of the validation run")
     args = parser.parse_args(argv)
-    course_dir = args.course_dir.resolve()
+    course_dir = (args.course_dir or (GRADE_ALL_DIR if args.command == "grade-all" else COURSE_DIR)).resolve()
     course_dir.mkdir(parents=True, exist_ok=True)
     if not (course_dir / "nbgrader_config.py").is_file():
         shutil.copyfile(COURSE_DIR / "nbgrader_config.py", course_dir / "nbgrader_config.py")
@@ -290,6 +411,8 @@ def main(argv: list[str] | None = None) -> int:
         make_sources(args.chapters, course_dir)
     elif args.command == "release":
         release(args.chapters, course_dir, args.timeout)
+    elif args.command == "grade-all":
+        return grade_all(args.chapters, course_dir, args.timeout, args.wall_clock, args.release_timeout)
     else:
         grade(args.submissions.resolve(), args.assignment, course_dir, args.timeout, args.wall_clock,
               args.out)

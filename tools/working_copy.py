@@ -13,6 +13,12 @@ collides with their work. ``sync`` copies what is new and merges what changed, c
   markdown note (tagged ``course-update-conflict``) that says what happened;
 * outputs never conflict: a cell keeps the student's outputs unless its source came from the
   course, and then it carries the course's outputs;
+* **saved or live, at a glance**: the course's outputs come from its reference run (another
+  machine, another day). In the working copy each of them starts with a one-line note saying so,
+  and its cell has no execution count (the prompt reads ``[ ]``). Running the cell replaces its
+  outputs, note included, so an output without the note is always the student's own. A copy made
+  before the notes existed gets them on its next sync, on the outputs that are still exactly the
+  reference run's; outputs the student made are never touched;
 * other files (``config/*.yaml``) are replaced if the student left them alone; otherwise the
   course's new version is written beside them as ``NAME.course-update``;
 * a notebook the student deleted comes back fresh: deleting is how to start a chapter over.
@@ -46,6 +52,10 @@ CONFLICT_TAG = "course-update-conflict"
 SKIPPED = {"conftest.py", "__pycache__", ".ipynb_checkpoints", BASE_DIR}
 # Cell metadata that records how a cell was shown or run, not what it is.
 VIEW_METADATA = {"collapsed", "scrolled", "jupyter", "execution", "ExecuteTime", "trusted"}
+# The note in front of the outputs of the course's reference run (see the module docstring).
+REFERENCE_KEY = "ros2_course"  # output metadata: {"ros2_course": {"reference_run": true}}
+REFERENCE_NOTE = ("Saved output of the course's reference run, not yours: run this cell to see your "
+                  "own (numbers, domains and times will differ).")
 
 
 def work_dir(value: str | None = None) -> Path:
@@ -169,6 +179,75 @@ def merge_notebooks(base: dict | None, ours: dict, theirs: dict) -> tuple[dict, 
     return merged, conflicts
 
 
+# ---------------------------------------------------------------------- saved or live
+def reference_marker() -> dict:
+    """The output that goes first in the outputs of the reference run (markdown, and plain text)."""
+    return {"output_type": "display_data", "metadata": {REFERENCE_KEY: {"reference_run": True}},
+            "data": {"text/markdown": f"<small><i>{REFERENCE_NOTE}</i></small>",
+                     "text/plain": REFERENCE_NOTE}}
+
+
+def is_marked(cell: dict) -> bool:
+    """True when the cell's outputs are the reference run's, with the note in front."""
+    outputs = cell.get("outputs") or []
+    return bool(outputs) and bool(outputs[0].get("metadata", {}).get(REFERENCE_KEY, {}).get("reference_run"))
+
+
+def _mark(cell: dict) -> None:
+    """Put the note in front of a code cell's outputs and take its execution counts away."""
+    cell["execution_count"] = None
+    outputs = [dict(output, execution_count=None) if output.get("output_type") == "execute_result"
+               else output for output in cell.get("outputs") or []]
+    cell["outputs"] = [reference_marker(), *outputs] if outputs else []
+
+
+def student_edition(notebook: dict) -> dict:
+    """The course notebook as a working copy receives it: every saved output marked as the reference run's."""
+    edition = copy.deepcopy(notebook)
+    for cell in edition.get("cells", []):
+        if cell.get("cell_type") == "code" and not is_marked(cell):
+            _mark(cell)
+    return edition
+
+
+def _run_record(cell: dict) -> str:
+    """A code cell's execution count and outputs, in a form that does not depend on how they were saved."""
+    def text(value):
+        return "".join(value) if isinstance(value, list) else value
+
+    outputs = []
+    for output in cell.get("outputs") or []:
+        output = {key: (text(value) if key == "text" else value) for key, value in output.items()}
+        if "data" in output:
+            output["data"] = {kind: text(value) for kind, value in output["data"].items()}
+        outputs.append(output)
+    return json.dumps([cell.get("execution_count"), outputs], sort_keys=True)
+
+
+def mark_reference_outputs(notebook: dict, *references: dict | None) -> int:
+    """Mark the outputs in ``notebook`` that are exactly a reference notebook's for the same cell.
+
+    For working copies made before the notes existed: their cells still carry the reference run's
+    outputs, unmarked. A cell whose count and outputs equal the course's (as last copied, or now)
+    gets the note; a cell the student ran has another count or other outputs and stays as it is
+    (a run that repeats the reference run to the byte, count included, cannot be told from it and
+    is marked too: its note is then true of what it shows). Returns how many cells were marked.
+    """
+    records = {}
+    for reference in references:
+        for cell in (reference or {}).get("cells", []):
+            if cell.get("cell_type") == "code" and cell.get("id"):
+                records.setdefault(cell["id"], set()).add(_run_record(cell))
+    marked = 0
+    for cell in notebook.get("cells", []):
+        ran = cell.get("outputs") or cell.get("execution_count") is not None
+        if (cell.get("cell_type") == "code" and ran and not is_marked(cell)
+                and _run_record(cell) in records.get(cell.get("id"), ())):
+            marked += bool(cell.get("outputs"))  # a cell without outputs only loses its count
+            _mark(cell)
+    return marked
+
+
 # ---------------------------------------------------------------------- files
 def _read_json(path: Path) -> dict | None:
     try:
@@ -215,6 +294,10 @@ def course_files(course: Path) -> list[Path]:
 def sync_file(relative: Path, course: Path, work: Path) -> str:
     """Bring one course file into the working copy; return what happened, in a few words."""
     theirs = (course / relative).read_bytes()
+    course_notebook = None
+    if relative.suffix == ".ipynb":  # the copy receives the student edition (reference outputs marked)
+        course_notebook = json.loads(theirs)
+        theirs = _dumps(student_edition(course_notebook))
     target, base_path = work / relative, work / BASE_DIR / relative
     ours, base = _read(target), _read(base_path)
     if ours is None:
@@ -223,12 +306,15 @@ def sync_file(relative: Path, course: Path, work: Path) -> str:
     elif ours == theirs:
         outcome = "unchanged"
     elif relative.suffix == ".ipynb":
-        merged, conflicts = merge_notebooks(json.loads(base) if base else None, json.loads(ours),
-                                            json.loads(theirs))
+        base_notebook = json.loads(base) if base else None
+        merged, conflicts = merge_notebooks(base_notebook, json.loads(ours), json.loads(theirs))
+        marked = mark_reference_outputs(merged, base_notebook, course_notebook)
         data = _dumps(merged)
         if data != _dumps(json.loads(ours)):
             _write(target, data)
             outcome = f"merged, {conflicts} conflict(s) marked" if conflicts else "updated"
+            if marked:
+                outcome += f" ({marked} saved output(s) marked as the reference run's)"
         else:
             outcome = "kept your version" if base != theirs else "unchanged"
     elif base == ours:

@@ -2,20 +2,19 @@
 
 * :func:`layer_stack` / :func:`show_layer_stack` / :func:`draw_layer_stack` - rclpy, rcl, rmw,
   the rmw implementation, Fast DDS and Fast CDR as this kernel runs them: package versions and
-  the shared libraries actually mapped into the process (read from ``/proc/self/maps``);
+  the shared libraries actually mapped into the process (its memory maps, read with psutil);
 * :func:`transports_in_use` - the shared-memory segments and UDP sockets Fast DDS opened here;
 * :class:`NamedTalker` and :class:`ChatterCounter` - nodes for the demo in which nodes in
   separate processes find each other with nothing started first, and keep talking when one of
   them is killed (``rt.spawn('talker_a', NamedTalker, {'name': 'talker_a'})``).
 
-Linux only (``/proc``), like the rest of the course.
+Linux only, like the rest of the course.
 """
 
 from __future__ import annotations
 
 import os
 import re
-import tempfile
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -23,6 +22,7 @@ from dataclasses import dataclass, field
 from rclpy.node import Node
 from std_msgs.msg import String
 
+from course_helpers.core import dds_config, processes
 from course_helpers.core.errors import CourseError
 from course_helpers.core.udp_sockets import udp_sockets
 from course_helpers.core.versions import package_version
@@ -74,18 +74,21 @@ def loaded_libraries(pattern: str | None = None, pid: int | str = "self") -> lis
     Returns:
         The sorted basenames, e.g. ``['libfastrtps.so.2.14', 'librmw_fastrtps_cpp.so']``.
     """
-    try:
-        with open(f"/proc/{pid}/maps", encoding="utf-8") as handle:
-            lines = handle.read().splitlines()
-    except OSError as exc:
-        raise CourseError(f"cannot read /proc/{pid}/maps ({exc}); this needs Linux") from None
-    names = set()
-    for line in lines:
-        parts = line.split()
-        if len(parts) >= 6 and ".so" in parts[-1]:
-            names.add(os.path.basename(parts[-1]))
+    names = {os.path.basename(path) for path in _mapped_files(pid) if ".so" in path}
     regex = re.compile(pattern) if pattern else None
     return sorted(n for n in names if regex is None or regex.search(n))
+
+
+def _mapped_files(pid: int | str = "self") -> list[str]:
+    """The paths of the files mapped into process ``pid`` ('self': this one)."""
+    import psutil
+
+    try:
+        process = psutil.Process() if pid == "self" else psutil.Process(int(pid))
+        return [region.path for region in process.memory_maps(grouped=True)]
+    except (psutil.Error, ValueError) as exc:
+        raise CourseError(f"cannot read the memory maps of process {pid} ({exc}); this needs Linux "
+                          "and a process of your own") from None
 
 
 def layer_stack() -> list[Layer]:
@@ -170,8 +173,9 @@ def transports_in_use(domain_id: int | None = None) -> Transports:
 
     Returns:
         A :class:`Transports`. Fast DDS keeps the shared-memory segments and ports in
-        ``/dev/shm/fastrtps_*`` and ``/dev/shm/fastdds_*``; the UDP sockets are the process's
-        own (:func:`course_helpers.core.udp_sockets.udp_sockets`). The runtime's DDS
+        ``/dev/shm/fastrtps_*`` and ``/dev/shm/fastdds_*``, mapped into the process (read with
+        psutil); the UDP sockets are the process's own
+        (:func:`course_helpers.core.udp_sockets.udp_sockets`). The runtime's DDS
         participant is created first if no node has created it yet.
     """
     from course_helpers.core.runtime import get_runtime
@@ -179,12 +183,7 @@ def transports_in_use(domain_id: int | None = None) -> Transports:
     get_runtime().graph_nodes()  # rmw creates the participant (and its transports) with the first node
     if domain_id is None:
         domain_id = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
-    shm = set()
-    with open("/proc/self/maps", encoding="utf-8") as handle:
-        for line in handle:
-            path = line.split()[-1] if line.strip() else ""
-            if path.startswith("/dev/shm/fast"):
-                shm.add(os.path.basename(path))
+    shm = {os.path.basename(path) for path in _mapped_files() if path.startswith("/dev/shm/fast")}
     return Transports(domain_id, sorted(shm),
                       [(address, port, classify_port(port, domain_id)) for address, port in udp_sockets()])
 
@@ -235,22 +234,6 @@ def draw_layer_stack(layers: list[Layer] | None = None, transports: Transports |
 
 
 # ---------------------------------------------------------------------- no master
-_LEASE_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <participant profile_name="course_short_lease" is_default_profile="true">
-    <rtps>
-      <builtin>
-        <discovery_config>
-          <leaseDuration><sec>{sec}</sec><nanosec>{nsec}</nanosec></leaseDuration>
-          <leaseAnnouncement><sec>{asec}</sec><nanosec>{ansec}</nanosec></leaseAnnouncement>
-        </discovery_config>
-      </builtin>
-    </rtps>
-  </participant>
-</profiles>
-"""
-
-
 def short_lease_env(lease_s: float = 2.0) -> dict[str, str]:
     """Environment for ``rt.spawn(..., env=...)``: the child's participant announces a short lease.
 
@@ -258,24 +241,11 @@ def short_lease_env(lease_s: float = 2.0) -> dict[str, str]:
 
     Peers drop a participant that stays silent longer than its lease. Fast DDS's default is
     20 s; a 2 s lease lets the notebook show a crashed node leaving the graph without a long
-    wait. The lease is set in a Fast DDS XML profile (``FASTRTPS_DEFAULT_PROFILES_FILE``);
-    the participant announces itself four times per lease.
+    wait. The lease is set in the course's Fast DDS XML profile (``FASTRTPS_DEFAULT_PROFILES_FILE``,
+    :func:`course_helpers.core.dds_config.short_lease_env`), written into this kernel's private
+    folder.
     """
-    if not 0.5 <= lease_s <= 60:
-        raise CourseError(f"lease_s must be 0.5..60 seconds, got {lease_s!r}")
-    announce = lease_s / 4
-
-    def split(seconds):
-        whole = int(seconds)
-        return whole, int(round((seconds - whole) * 1e9))
-
-    (sec, nsec), (asec, ansec) = split(lease_s), split(announce)
-    path = os.path.join(tempfile.gettempdir(), f"ros2-course-lease-{os.getuid()}-{sec}.{nsec:09d}.xml")
-    partial = f"{path}.{os.getpid()}"
-    with open(partial, "w", encoding="utf-8") as handle:
-        handle.write(_LEASE_PROFILE.format(sec=sec, nsec=nsec, asec=asec, ansec=ansec))
-    os.replace(partial, path)  # atomic: a child never reads a half-written profile
-    return {"FASTRTPS_DEFAULT_PROFILES_FILE": path}
+    return dds_config.short_lease_env(processes.log_dir(), lease_s)
 
 
 class NamedTalker(Talker):

@@ -3,9 +3,10 @@
 * :func:`sleep_async` is an awaitable pause for ``async def`` callbacks (an action's
   execute callback): it lets the single executor thread run other callbacks
   meanwhile, where ``time.sleep`` would freeze every node of the kernel.
-* :class:`FeedbackProgress` is a progress bar (ipywidgets) driven by an action
-  client's feedback callback, which also keeps the values it saw; in a notebook it
-  leaves a static record of how the goal ended.
+* :class:`FeedbackProgress` drives the course's progress bar
+  (:class:`~course_helpers.notebook.progress.ProgressWithRecord`) with an action client's
+  feedback callback and keeps the values it saw; in a notebook it leaves a static record
+  of how the goal ended.
 * :func:`action_parts` lists, from the live graph, the hidden topics and services
   an action is made of (``<action>/_action/feedback``, ``.../status``,
   ``.../send_goal``, ``.../cancel_goal``, ``.../get_result``).
@@ -79,7 +80,7 @@ class FeedbackProgress:
         if not callable(value_of):
             raise CourseError("value_of must be a function: feedback -> number, e.g. "
                               "lambda fb: len(fb.partial_sequence)")
-        import ipywidgets as widgets
+        from course_helpers.notebook.progress import ProgressWithRecord
 
         self.maximum = maximum
         self.value_of = value_of
@@ -87,18 +88,19 @@ class FeedbackProgress:
         self.values: list[float] = []
         self.status: str | None = None
         self.outcome_text = ""
-        self.record = None  # the static record, once the bar is displayed
-        self.bar = widgets.FloatProgress(value=0.0, min=0.0, max=float(maximum), description=description,
-                                         style={"description_width": "initial"})
-        self.label = widgets.Label(value=f"0 / {maximum:g}")
-        self.widget = widgets.HBox([self.bar, self.label])
+        self.progress = ProgressWithRecord(description, maximum, f"0 / {maximum:g}", describe=True)
+        self.bar, self.label, self.widget = self.progress.bar, self.progress.label, self.progress.widget
+
+    @property
+    def record(self):
+        """The static record, once the bar is displayed (else None)."""
+        return self.progress.record
 
     def on_feedback(self, feedback_message) -> None:
         """Feedback callback for ``ActionClient.send_goal_async``: move the bar."""
         value = float(self.value_of(feedback_message.feedback))
         self.values.append(value)
-        self.bar.value = min(max(value, 0.0), float(self.maximum))
-        self.label.value = f"{value:g} / {self.maximum:g}"
+        self.progress.move(value, f"{value:g} / {self.maximum:g}")
 
     def follow(self, goal_handle, describe: Callable | None = None) -> None:
         """Colour the bar and show the final status when the goal's result arrives.
@@ -109,11 +111,11 @@ class FeedbackProgress:
         def finished(future):
             outcome = future.result()
             self.status = status_name(outcome.status) if outcome is not None else "UNKNOWN"
-            self.bar.bar_style = {"SUCCEEDED": "success", "CANCELED": "warning"}.get(self.status, "danger")
-            self.label.value = f"{self.label.value}  {self.status}"
+            self.progress.end({"SUCCEEDED": "success", "CANCELED": "warning"}.get(self.status, "danger"),
+                              f"{self.label.value}  {self.status}")
             if describe is not None and outcome is not None:
                 self.outcome_text = str(describe(outcome.result))
-            self._update_record()
+            self.progress.update_record(self.summary(), self._record_html())
 
         goal_handle.get_result_async().add_done_callback(finished)
 
@@ -130,19 +132,13 @@ class FeedbackProgress:
         return (f"<progress value='{value:g}' max='{self.maximum:g}'></progress> "
                 f"<code>{html.escape(self.summary())}</code>")
 
-    def _update_record(self) -> None:
-        if self.record is not None:
-            self.record.update(self.summary(), self._record_html())
-
     @property
     def monotonic(self) -> bool:
         """True if the values never went down."""
         return all(a <= b for a, b in zip(self.values, self.values[1:], strict=False))
 
     def _ipython_display_(self):
-        from course_helpers.notebook.records import show_with_record
-
-        self.record = show_with_record(self.widget, self.description, self.summary(), self._record_html())
+        self.progress.show(self.summary(), self._record_html())
 
 
 @dataclass(frozen=True)

@@ -2,47 +2,108 @@
 
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass, field
+
 from course_helpers.chapters.ch02_executors import JitterProbe, spin_for, spinning_alone, tick_gaps
 from course_helpers.checks import CheckReport
 
 HEARTBEAT_PERIOD_S = 0.1
+CAMERA_PERIOD_S, CAMERA_WAIT_S = 0.2, 0.05
+PLANNER_PERIOD_S, PLANNER_BLOCK_S = 0.5, 0.3
+GIVEN_PERIODS_S = (HEARTBEAT_PERIOD_S, CAMERA_PERIOD_S, PLANNER_PERIOD_S)
 MAX_GAP_S = 0.15  # the exercise's watchdog: a heartbeat gap longer than this fails
 PLANNER_GAP_S = 0.25  # a gap this long means the heartbeat waited for the 0.3 s planner
 PROBE_PERIOD_S = 0.02
+SLEEP_SLACK_S = 0.002  # time.sleep(t) never returns before t; this covers the clock's rounding
 
 
-def check_responsive_robot(node_class, duration_s: float = 2.5, threads: int = 3) -> CheckReport:
-    """Check the student's robot node: the heartbeat stays regular while slow callbacks run.
+@dataclass
+class TimedCalls:
+    """The calls of one timer's callback: when each started and how long it ran (seconds)."""
+
+    starts: list[float] = field(default_factory=list)
+    durations: list[float] = field(default_factory=list)
+
+    def started_during(self, other: TimedCalls) -> int:
+        """How many of these calls started while a call of ``other`` was running."""
+        runs = list(zip(other.starts, other.durations, strict=True))
+        return sum(any(start <= t < start + took for start, took in runs) for t in self.starts)
+
+    def wrap(self, callback):
+        def timed(*args):
+            started = time.monotonic()
+            try:
+                return callback(*args)
+            finally:
+                self.starts.append(started)
+                self.durations.append(time.monotonic() - started)
+
+        return timed
+
+
+def _timed_robot(node_class, calls: dict[float, TimedCalls], periods: list[float]):
+    """A factory that builds the student's node and times the callback of each of its timers,
+    keyed by the timer's period (s), which it appends to ``periods``. The callbacks themselves
+    are left as they are."""
+
+    def build():
+        node = node_class()
+        for timer in list(getattr(node, "timers", [])):
+            period = round(timer.timer_period_ns / 1e9, 3)
+            periods.append(period)
+            timer.callback = calls.setdefault(period, TimedCalls()).wrap(timer.callback)
+        return node
+
+    return build
+
+
+def check_responsive_robot(node_class, duration_s: float = 2.0, threads: int = 3) -> CheckReport:
+    """Check the student's robot node: the heartbeat stays regular while the slow callbacks run as given.
 
     Args:
         node_class: a Node subclass (or function) that builds, without arguments, a node with
-            three timers: ``heartbeat`` every 0.1 s appending time.monotonic() to ``self.beats``,
-            ``camera`` every 0.2 s sleeping 0.05 s and counting ``self.frames``, ``planner`` every
-            0.5 s sleeping 0.3 s and counting ``self.plans``.
+            three timers: ``heartbeat`` every 0.1 s, ``camera`` every 0.2 s waiting 0.05 s,
+            ``planner`` every 0.5 s blocking 0.3 s.
         duration_s: how long to spin it, seconds.
         threads: threads of the MultiThreadedExecutor it is spun in.
 
     Returns:
-        A :class:`CheckReport`, one criterion per requirement. A probe timer, spun alone beside the
-        node, measures how long the machine itself kept this process from running (other
-        programs on a busy computer); a heartbeat gap is judged without that delay, but a gap
-        as long as a wait for the planner always fails.
+        A :class:`CheckReport`, one criterion per requirement. Each timer's callback is timed as it
+        runs, so a callback made faster (the planner's sleep deleted) fails although the heartbeat
+        would then be regular, and a beat that starts while the planner runs shows that the two
+        may overlap, whatever the machine's speed. A probe timer, spun alone beside the node,
+        measures how long the machine itself kept this process from running (other programs on a
+        busy computer); a heartbeat gap is judged without that delay, but a gap as long as a wait
+        for the planner always fails.
     """
     report = CheckReport("Exercise: keep the heartbeat regular")
+    calls: dict[float, TimedCalls] = {}
+    periods: list[float] = []
     with spinning_alone(JitterProbe, period_s=PROBE_PERIOD_S, name="_stall_probe") as probe:
         node = report.run("the node starts and spins",
-                          lambda: spin_for(node_class, duration_s, "multi", threads=threads),
+                          lambda: spin_for(_timed_robot(node_class, calls, periods), duration_s, "multi",
+                                           threads=threads),
                           hint="Run the class cell first; __init__ takes no arguments.")
     if node is None:
         return report
     machine_delay_s = max(tick_gaps(probe.fired, PROBE_PERIOD_S).max_gap_s - PROBE_PERIOD_S, 0.0)
     report.add("the node starts and spins", True)
-    beats = tick_gaps(list(getattr(node, "beats", [])), HEARTBEAT_PERIOD_S, "heartbeat")
-    frames, plans = getattr(node, "frames", 0), getattr(node, "plans", 0)
-    enough = beats.tick_count >= 0.8 * duration_s / HEARTBEAT_PERIOD_S
-    report.add("the heartbeat fired about every 0.1 s", enough,
-               "" if enough else "fewer than 80% of the expected beats",
-               hint="Record time.monotonic() in self.beats at every heartbeat.")
+
+    periods.sort()
+    report.add("its timers are the given ones: every 0.1 s, 0.2 s and 0.5 s",
+               periods == sorted(GIVEN_PERIODS_S),
+               "" if periods == sorted(GIVEN_PERIODS_S) else f"found timers every {periods} s",
+               hint="Compare the timers with the exercise as given: their periods stay as they are.")
+
+    heartbeat = calls.get(HEARTBEAT_PERIOD_S, TimedCalls())
+    planner = calls.get(PLANNER_PERIOD_S, TimedCalls())
+    beside = heartbeat.started_during(planner)
+    report.add("the heartbeat kept beating while the planner blocked", beside > 0,
+               "" if beside else "no beat started while the planner ran",
+               hint="Two callbacks run at the same time only when nothing forbids it: section 8 shows "
+                    "what decides that, beside the number of threads.")
+    beats = tick_gaps(heartbeat.starts, HEARTBEAT_PERIOD_S, "heartbeat")
     worst = beats.max_gap_s
     allowed = min(MAX_GAP_S + machine_delay_s, PLANNER_GAP_S)
     if worst < allowed:
@@ -53,12 +114,24 @@ def check_responsive_robot(node_class, duration_s: float = 2.5, threads: int = 3
         detail = "a gap between 0.15 and 0.25 s"
     report.add("no gap between heartbeats above 0.15 s (beyond the machine's own delays)", worst < allowed,
                detail,
-               hint="Callbacks in one mutually exclusive group never overlap: give the heartbeat "
-                    "its own callback group, separate from the slow callbacks.")
-    report.add("the camera callback kept running (>= 5 frames)", frames >= 5,
-               "" if frames >= 5 else "fewer than 5 frames",
-               hint="Keep the 0.2 s camera timer and count self.frames.")
-    report.add("the planner still ran (>= 2 plans)", plans >= 2,
-               "" if plans >= 2 else "fewer than 2 plans",
-               hint="Keep the 0.5 s planner with its 0.3 s sleep; making it fast is not the fix.")
+               hint="Section 8 measured a control loop that kept ticking beside a blocking planner in "
+                    "one of three configurations: compare that node's constructor with yours.")
+    _ran_as_given(report, "camera", calls.get(CAMERA_PERIOD_S), CAMERA_WAIT_S, 5)
+    _ran_as_given(report, "planner", calls.get(PLANNER_PERIOD_S), PLANNER_BLOCK_S, 2)
     return report
+
+
+def _ran_as_given(report: CheckReport, what: str, timed: TimedCalls | None, takes_s: float,
+                  at_least: int) -> None:
+    """Add the criterion that the ``what`` callback ran ``at_least`` times, each taking ``takes_s``."""
+    name = f"the {what} ran as given: at least {at_least} times, each taking {takes_s * 1e3:g} ms"
+    calls = timed.durations if timed is not None else []
+    if len(calls) < at_least:
+        detail = f"fewer than {at_least} calls"
+    elif min(calls) < takes_s - SLEEP_SLACK_S:
+        detail = f"a call took less than {takes_s * 1e3:g} ms"
+    else:
+        detail = ""
+    report.add(name, not detail, detail,
+               hint=f"The exercise leaves what the {what} does unchanged; compare your {what} "
+                    "timer and callback with the cell as given.")

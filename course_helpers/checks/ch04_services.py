@@ -42,29 +42,32 @@ def check_battery_server(node_class, rt=None) -> CheckReport:
 def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
     if not report.add("the node is called battery_monitor", node.get_name() == "battery_monitor",
                       _unless(node.get_name() == "battery_monitor", f"it is called {node.get_name()!r}"),
-                      "super().__init__('battery_monitor')"):
+                      "The exercise names the node: compare it with the name your constructor passes on."):
         return
     offered = offered_services(node).get("/battery_status")
     if not report.add("it offers /battery_status of type std_srvs/srv/Trigger",
                       offered == "std_srvs/srv/Trigger",
                       f"it offers {offered}" if offered else "it offers no /battery_status service",
-                      "self.create_service(Trigger, 'battery_status', self.on_status)"):
+                      "TODO 2: the exercise names the service and its type; section 2's server shows "
+                      "how a node offers one."):
         return
     client = probe.create_client(Trigger, "/battery_status")
-    if not report.add("the checker's client finds the service", poll_until(client.service_is_ready, 3.0)):
+    if not report.add("the checker's client finds the service", poll_until(client.service_is_ready, 3.0),
+                      "", "The service exists but a default client cannot reach it: did you give it a "
+                          "QoS profile of its own?"):
         return
     first = report.run("it answers before any reading", lambda: _call(rt, client, Trigger.Request()),
-                       hint="The service callback must return the response object.")
+                       hint="Section 2: what does a service callback give back to rclpy?")
     if first is None:
         return
     report.add("before any reading: success is False and the message says 'no reading'",
                not first.success and "no reading" in first.message.lower(),
                f"got success={first.success}, message={first.message!r}",
-               "Keep self.level = None until the first message arrives and answer 'no reading yet'.")
+               "The exercise's table has a row for the time before the first reading.")
     publisher = probe.create_publisher(Float32, "/battery_level", 10)
     if not report.add("it subscribes to /battery_level", poll_until(
             lambda: publisher.get_subscription_count() >= 1, 3.0), "",
-            "self.create_subscription(Float32, 'battery_level', self.on_level, 10)"):
+            "TODO 1: the exercise names the topic and its message type."):
         return
     for level, healthy in ((57.0, True), (12.4, False), (20.0, True)):
         expected = f"{round(level)}%"
@@ -73,15 +76,16 @@ def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
         if response is None or expected not in response.message:
             got = response.message if response is not None else "no answer"
             report.add(f"after a reading of {level:g}%: the message contains '{expected}'", False,
-                       f"message {got!r}", "Store msg.data in on_level and format it as f'{level:.0f}%'.")
+                       f"message {got!r}", "The table's messages give the latest level, rounded to a "
+                                           "whole percent.")
             continue
         low_ok = ("low" in response.message.lower()) == (not healthy)
         report.add(f"after a reading of {level:g}%: success is {healthy} and the message is "
                    f"{'a low-battery warning' if not healthy else 'not a warning'}",
                    response.success == healthy and low_ok,
                    f"got success={response.success}, message={response.message!r}",
-                   "Below 20% answer success=False and 'battery low: N%'; from 20% up, success=True "
-                   "and 'battery at N%'.")
+                   "Compare your answer with the exercise's table for this level; mind the boundary "
+                   "at 20 %.")
 
 
 def check_relay_server(node_class, rt=None) -> CheckReport:
@@ -109,22 +113,26 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
             named = relay.get_name() == "sum_relay"
             if not report.add("the node is called sum_relay", named,
                               _unless(named, f"it is called {relay.get_name()!r}"),
-                              "super().__init__('sum_relay')"):
+                              "The exercise names the node: compare it with the name your constructor "
+                              "passes on."):
                 return report
             offered = offered_services(relay).get(full_name(namespace, "add_via_relay"))
             if not report.add("it offers add_via_relay of type course_interfaces/srv/AddTwoInts",
                               offered == "course_interfaces/srv/AddTwoInts",
                               f"it offers {offered}" if offered else "it offers no add_via_relay service",
-                              "self.create_service(AddTwoInts, 'add_via_relay', self.on_request)"):
+                              "TODO 2: the exercise names the service; its type is the backend's."):
                 return report
             client = probe.create_client(AddTwoInts, full_name(namespace, "add_via_relay"))
             ready = poll_until(client.service_is_ready, 3.0)
-            if not report.add("the checker's client finds the service", ready):
+            if not report.add("the checker's client finds the service", ready, "",
+                              "The service exists but a default client cannot reach it: did you give it a "
+                              "QoS profile of its own?"):
                 return report
             backend_seen = poll_until(lambda: bool(relay.clients) and all(
                 c.service_is_ready() for c in relay.clients), 3.0)
             if not report.add("it has a client of add_two_ints that found the backend", backend_seen, "",
-                              "self.create_client(AddTwoInts, 'add_two_ints', ...) in __init__"):
+                              "TODO 1: the backend is the add_two_ints service; section 3 shows how a "
+                              "node creates a client."):
                 return report
             _check_relay_answers(rt, report, client, backend, AddTwoInts)
         finally:
@@ -142,24 +150,24 @@ def _check_relay_answers(rt, report, client, backend, add_two_ints) -> None:
     except TimeoutError:
         report.add(f"it answers 2 + 3 within {ANSWER_TIMEOUT_S:g} s", False,
                    "no answer: the callback is stuck waiting (deadlock)",
-                   "client.call() blocks the only executor thread. Make the callback `async def`, "
-                   "`await self.backend.call_async(...)`, and give the client a callback group of "
-                   "its own: an async callback keeps its group busy while it awaits.")
+                   "Section 5 and the exercise's two bullets: why can a callback that waits for "
+                   "another service never get its answer on one thread, and what does the client need?")
         return
-    report.add("it answers 2 + 3 = 5", response.sum == 5, f"got {response.sum}")
+    report.add("it answers 2 + 3 = 5", response.sum == 5, f"got {response.sum}",
+               "Which field of the backend's answer do you copy into your response?")
     report.add("it asked the add_two_ints backend for the sum", backend.answered == before + 1,
                f"the backend answered {backend.answered - before} request(s)",
-               "Relay every request to add_two_ints instead of adding locally.")
+               "The exercise asks the relay to get every sum from add_two_ints.")
     pairs = [(-7, 10), (1000, 234), (0, 0)]
     futures = [client.call_async(add_two_ints.Request(a=a, b=b)) for a, b in pairs]
     try:
         sums = [rt.wait_for_future(f, ANSWER_TIMEOUT_S, "the relayed sums").sum for f in futures]
     except TimeoutError:
         report.add("it answers three requests sent at once", False, "not all were answered in time",
-                   "Do not keep state between requests; each await resumes its own request.")
+                   "Does something your callback keeps on self outlive its own request?")
         return
     report.add("it answers three requests sent at once", sums == [a + b for a, b in pairs],
-               f"got {sums}")
+               f"got {sums}", "Does something your callback keeps on self outlive its own request?")
 
 
 def _unless(passed: bool, detail: str) -> str:

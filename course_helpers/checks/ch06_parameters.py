@@ -26,6 +26,7 @@ from course_helpers.core.waiting import poll_until
 STATUS_TOPIC = "/overheat_check/status"  # the checker's override of status_topic
 DEFAULTS = {"rate_hz": 5.0, "warning_c": 60.0, "critical_c": 80.0}
 SETTLE_S = 0.25  # a retuned timer's first period may still be the old one [s]
+RATE_RATIO = (0.5, 2.0)  # statuses over the ticks of a reference timer at the expected rate
 
 
 class OverheatProbe(Node):
@@ -57,23 +58,40 @@ class OverheatProbe(Node):
     def status_after(self, celsius: float | None, expected: str, timeout_s: float = 1.5) -> str | None:
         """Publish a temperature (unless None), wait up to ``timeout_s`` for status ``expected``.
 
-        Returns the newest status then (``expected`` if it came).
+        Only a status from the second one on after the change counts: the first may come from a
+        timer tick that ran before the monitor took the new temperature. Returns the newest status
+        then (``expected`` if it came), or None if fewer than two came.
         """
+        with self.lock:
+            before = len(self.statuses)
         if celsius is not None:
             self.temperature.publish(Float64(data=float(celsius)))
-        poll_until(lambda: self.latest() == expected, timeout_s)
-        return self.latest()
 
-    def status_rate(self, seconds: float = 1.0) -> float:
-        """The status rate [Hz] measured over the next ``seconds`` (after letting a retuned timer settle)."""
+        def fresh() -> str | None:
+            with self.lock:
+                return self.statuses[-1][1] if len(self.statuses) - before >= 2 else None
+
+        poll_until(lambda: fresh() == expected, timeout_s)
+        return fresh()
+
+    def status_counts(self, expected_hz: float, seconds: float = 1.0) -> tuple[int, int]:
+        """(statuses received, ticks of a reference timer at ``expected_hz``) over the next ``seconds``.
+
+        The reference timer runs on this probe, in the same executor as the monitor's timer, so a
+        busy machine delays both alike (rcl skips the periods a late timer missed). A retuned timer
+        gets ``SETTLE_S`` to settle first.
+        """
         time.sleep(SETTLE_S)
+        ticks: list[float] = []
+        timer = self.rt.call_in_executor(
+            lambda: self.create_timer(1.0 / expected_hz, lambda: ticks.append(time.monotonic())))
         start = time.monotonic()
         time.sleep(seconds)  # the measurement window
+        self.rt.call_in_executor(lambda: self.destroy_timer(timer))
+        end = time.monotonic()
         with self.lock:
-            stamps = [t for t, _ in self.statuses if t >= start]
-        if len(stamps) < 3:
-            return len(stamps) / seconds
-        return (len(stamps) - 1) / (stamps[-1] - stamps[0])
+            statuses = sum(start <= t <= end for t, _ in self.statuses)
+        return statuses, sum(start <= t <= end for t in ticks)
 
 
 def check_overheat_monitor(node_class, rt=None) -> CheckReport:
@@ -87,13 +105,14 @@ def check_overheat_monitor(node_class, rt=None) -> CheckReport:
     overrides = [Parameter("status_topic", value=STATUS_TOPIC)]
     node = report.run("the node can be created with parameter overrides",
                       lambda: rt.add(node_class, parameter_overrides=overrides, console=False),
-                      hint="def __init__(self, **kwargs): super().__init__('overheat_monitor', **kwargs)")
+                      hint="The exercise's first bullet: what must the constructor take, and pass on "
+                           "to Node?")
     if node is None:
         return report
     probe = rt.add(OverheatProbe, rt, console=False)
     try:
         if _check_declarations(report, node):
-            _check_behaviour(report, probe)
+            _check_behaviour(report, probe, node)
     finally:
         rt.remove(probe)
         rt.remove(node)
@@ -104,7 +123,7 @@ def _check_declarations(report: CheckReport, node: Node) -> bool:
     named = node.get_name() == "overheat_monitor"
     if not report.add("the node is called overheat_monitor", named,
                       "" if named else f"it is called {node.get_name()!r}",
-                      "super().__init__('overheat_monitor', **kwargs)"):
+                      "The exercise names the node: compare it with the name your constructor passes on."):
         return False
     wrong = []
     for name, default in DEFAULTS.items():
@@ -114,61 +133,79 @@ def _check_declarations(report: CheckReport, node: Node) -> bool:
               or node.get_parameter(name).value != default):
             wrong.append(f"{name} = {node.get_parameter(name).value!r}")
     report.add("it declares rate_hz = 5.0, warning_c = 60.0 and critical_c = 80.0 (floats)", not wrong,
-               "; ".join(wrong), "self.declare_parameter('rate_hz', 5.0, descriptor); write 5.0, not 5, "
-               "so the parameter is a double.")
+               "; ".join(wrong), "Compare your names and defaults with the exercise's list; section 2 "
+               "explains why 5 and 5.0 are not the same parameter value.")
     if not node.has_parameter("status_topic"):
-        report.add("it declares status_topic", False, "", "self.declare_parameter('status_topic', "
-                   "'overheat_status', ParameterDescriptor(read_only=True))")
+        report.add("it declares status_topic", False, "", "TODO 1: the exercise lists four parameters.")
         return False
+    undescribed = [name for name in ("status_topic", *DEFAULTS)
+                   if node.has_parameter(name) and not node.describe_parameter(name).description.strip()]
+    report.add("every parameter is declared with a description", not undescribed,
+               f"no description: {', '.join(undescribed)}" if undescribed else "",
+               "The exercise asks for a description on every parameter; section 2's talker shows where "
+               "one goes.")
     report.add("status_topic takes the value given at start (a parameter override)",
                node.get_parameter("status_topic").value == STATUS_TOPIC, "",
-               "Pass **kwargs on to super().__init__ so parameter_overrides reach the node.")
+               "The exercise's first bullet: the checker's parameter_overrides must reach Node.")
     return not wrong
 
 
-def _check_behaviour(report: CheckReport, probe: OverheatProbe) -> None:
+def _check_behaviour(report: CheckReport, probe: OverheatProbe, node: Node) -> None:
     if not report.add(f"it publishes its status on status_topic ({STATUS_TOPIC})",
                       poll_until(lambda: probe.latest() is not None, 3.0), "",
-                      "Create the publisher with the *value* of status_topic, and a timer at rate_hz."):
+                      "TODO 3: the publisher's topic is the parameter's value, and a timer publishes."):
         return
     got = probe.latest()
     report.add("before any temperature it reports 'no data'", got == "no data",
-               "" if got == "no data" else f"got {got!r}")
+               "" if got == "no data" else f"got {got!r}",
+               "The exercise says what the status is before the first reading.")
     _check_rejections(report, probe)
     for celsius, expected in ((25.0, "ok"), (55.0, "warning"), (85.0, "critical")):
         got = probe.status_after(celsius, expected)
         report.add(f"at {celsius:g} °C (warning_c 50, critical_c 80) it reports {expected!r}",
                    got == expected, "" if got == expected else f"got {got!r}",
-                   "Compare the latest temperature with the *current* parameter values in the timer "
-                   "callback: >= critical_c is 'critical', >= warning_c is 'warning', else 'ok'.")
+                   "The exercise's timer bullet says which status goes with which temperature.")
     accepted = probe.set_remote("critical_c", 90.0).successful
     got = probe.status_after(None, "warning")
     report.add("after critical_c is set to 90, 85 °C becomes 'warning'", accepted and got == "warning",
                "" if accepted and got == "warning" else
                ("the change was rejected" if not accepted else f"got {got!r}"),
-               "Read the thresholds with self.get_parameter(...).value when classifying.")
-    default_rate = probe.status_rate()
-    report.add("it publishes at about 5 Hz by default", 3.5 <= default_rate <= 6.5,
-               "" if 3.5 <= default_rate <= 6.5 else "measured a rate far from 5 Hz")
+               "Does the status use the thresholds as they are now, or as they were at start-up?")
+    _check_rate(report, probe, node, "it publishes at about 5 Hz by default", 5.0, True,
+                "Where does your timer's period come from?")
     accepted = probe.set_remote("rate_hz", 20.0).successful
-    fast = probe.status_rate()
-    report.add("after rate_hz is set to 20, it publishes at about 20 Hz", accepted and 14.0 <= fast <= 26.0,
-               "" if accepted and 14.0 <= fast <= 26.0 else
-               ("the change was rejected" if not accepted else "the rate did not follow"),
-               "Use add_post_set_parameters_callback to retune: self.timer.timer_period_ns = "
-               "int(1e9 / rate_hz).")
+    _check_rate(report, probe, node, "after rate_hz is set to 20, it publishes at about 20 Hz", 20.0,
+                accepted, "TODO 2, and section 2's talker: what acts on a change once it is applied?")
+
+
+def _check_rate(report: CheckReport, probe: OverheatProbe, node: Node, name: str, hz: float, accepted: bool,
+                hint: str) -> None:
+    """A timer of the node has the period 1/hz (read from the node: exact on any machine), and the
+    statuses come about as often as a timer at hz beside it ticks (within RATE_RATIO: that timer is
+    what publishes them; a busy machine delays both timers alike)."""
+    if not accepted:
+        report.add(name, False, "the change was rejected", hint)
+        return
+    periods_ms = sorted(timer.timer_period_ns / 1e6 for timer in node.timers if not timer.is_canceled())
+    timed = any(abs(period - 1e3 / hz) < 0.5 for period in periods_ms)
+    statuses, ticks = probe.status_counts(hz)
+    ok = timed and ticks > 0 and RATE_RATIO[0] <= statuses / ticks <= RATE_RATIO[1]
+    report.add(name, ok, "" if ok else
+               f"timer periods {', '.join(f'{p:g}' for p in periods_ms) or 'none'} ms, 1/{hz:g} Hz is "
+               f"{1e3 / hz:g} ms; {statuses} statuses while a {hz:g} Hz timer beside it ticked {ticks} times",
+               hint)
 
 
 def _check_rejections(report: CheckReport, probe: OverheatProbe) -> None:
     result = probe.set_remote("status_topic", "/elsewhere")
     report.add("status_topic is read-only (a change is rejected)", not result.successful, "",
-               "ParameterDescriptor(read_only=True)")
+               "Section 2's talker has a parameter that cannot change after start-up.")
     for bad in (0.2, 50.0):
         result = probe.set_remote("rate_hz", bad)
         report.add(f"rate_hz = {bad:g} is rejected (allowed 1.0 to 20.0)",
                    not result.successful and bool(result.reason), "",
-                   "ParameterDescriptor(floating_point_range=[FloatingPointRange(from_value=1.0, "
-                   "to_value=20.0, step=0.0)])")
+                   "Section 2's talker limits its rate with a descriptor field; the exercise gives the "
+                   "range.")
     for name, value in (("warning_c", 90.0), ("critical_c", 50.0)):
         result = probe.set_remote(name, value)
         names_both = "warning_c" in result.reason and "critical_c" in result.reason
@@ -176,13 +213,13 @@ def _check_rejections(report: CheckReport, probe: OverheatProbe) -> None:
                    not result.successful and names_both,
                    "" if not result.successful and names_both else
                    ("accepted" if result.successful else f"reason {result.reason!r}"),
-                   "add_on_set_parameters_callback: return SetParametersResult(successful=False, "
-                   "reason='warning_c (...) must be below critical_c (...)') when warning_c >= critical_c.")
+                   "TODO 4, and section 2's validate: compare the proposed value with the current value "
+                   "of the other threshold, and say why in the reason.")
     probe.set_remote("critical_c", 80.0)  # undo a wrongly accepted change: the next criteria stay meaningful
     result = probe.set_remote("warning_c", 50.0)
     report.add("warning_c = 50 is accepted", result.successful,
                "" if result.successful else f"reason {result.reason!r}",
-               "Only reject when warning_c >= critical_c; accept everything else.")
+               "Your validation rejected a change that keeps warning_c below critical_c.")
 
 
 # ---------------------------------------------------------------------- exercise 06b: the conveyor launch
@@ -206,14 +243,14 @@ def check_conveyor_launch(describe, proves_they_talk, rt=None) -> CheckReport:
     rt = rt or get_runtime()
     report = CheckReport("Exercise 06b - launch the conveyor and prove it talks")
     entries = report.run("conveyor_launch() returns the launch description", describe,
-                         hint="Return a list of two NodeLaunch(kind, name, namespace=..., parameters={...}).")
+                         hint="conveyor_launch() returns the kind of list that section 5 passes to launch().")
     if entries is None or not _check_description(report, entries):
         return report
     if not _check_proof_says_no(report, rt, proves_they_talk):
         return report
     group = report.run("the two nodes start together", lambda: launch(entries, label=LAUNCH_LABEL, rt=rt),
-                       hint="The error above is the child process's own; check kinds, names and parameter "
-                            "types (rate_hz is a double: 10.0, not 10).")
+                       hint="The error above is the child process's own: compare kinds, names and "
+                            "parameter types with the exercise.")
     if group is None:
         return report
     probe = rt.add(Node, "conveyor_checker", console=False)
@@ -226,13 +263,12 @@ def check_conveyor_launch(describe, proves_they_talk, rt=None) -> CheckReport:
         report.add("the counter hears the belt sensor (its process says so)",
                    heard and last.startswith("item "),
                    f"last message heard: {last!r}" if heard else "it heard nothing",
-                   "Both nodes need the same topic *and* the same namespace: 'items' in /line1 is "
-                   "/line1/items.")
+                   "Both nodes must resolve to the same topic: a node's namespace and its topic "
+                   "parameter decide it together.")
         said = _ask_proof(proves_they_talk, rt)
         report.add("your proof says yes for your running nodes", said is True, _said(said),
-                   "Look for /line1/belt_sensor among the publishers and /line1/counter among the "
-                   "subscriptions of /line1/items (wait for discovery with rt.poll_until), then wait for "
-                   "a message there.")
+                   "The exercise's second point lists what the proof looks at, and how it waits for "
+                   "discovery.")
     finally:
         rt.remove(probe)
         group.stop()
@@ -244,18 +280,17 @@ def _check_description(report: CheckReport, entries) -> bool:
             and all(isinstance(e, NodeLaunch) for e in entries)):
         got = type(entries).__name__ if not isinstance(entries, list) else f"a list of {len(entries)}"
         return report.add("it describes two nodes as NodeLaunch entries", False, f"got {got}",
-                          "return [NodeLaunch('talker', 'belt_sensor', namespace='/line1', "
-                          "parameters={...}), NodeLaunch('listener', ...)]")
+                          "Section 5 builds such a list; the exercise describes its two entries.")
     report.add("it describes two nodes as NodeLaunch entries", True)
     try:
         found = {entry.fqn: entry.kind for entry in entries}
     except Exception as error:  # a bad namespace: the entry's own message says what is allowed
         return report.add("the nodes are /line1/belt_sensor (talker) and /line1/counter (listener)", False,
-                          str(error))
+                          str(error), "The exercise gives each node's kind, name and namespace.")
     wanted = {fqn: kind for fqn, (kind, _params) in CONVEYOR.items()}
     return report.add("the nodes are /line1/belt_sensor (talker) and /line1/counter (listener)",
                       found == wanted, "" if found == wanted else f"got {found}",
-                      "name='belt_sensor' and name='counter', both with namespace='/line1'.")
+                      "The exercise gives each node's kind, name and namespace.")
 
 
 def _check_parameters(report: CheckReport, rt, probe: Node) -> None:
@@ -273,8 +308,8 @@ def _check_parameters(report: CheckReport, rt, probe: Node) -> None:
             if got != wanted[name] or type(got) is not type(wanted[name]):
                 wrong.append(f"{fqn} {name} = {got!r}")
     report.add("the nodes run with the parameters asked for", not wrong, "; ".join(wrong),
-               "parameters={'topic': 'items', 'rate_hz': 10.0, 'message': 'item'} for the belt sensor, "
-               "{'topic': 'items', 'log_every': 5} for the counter.")
+               "Compare each node's parameters with the exercise's list, types included (section 2: "
+               "10 and 10.0 differ).")
 
 
 def _check_proof_says_no(report: CheckReport, rt, proves_they_talk) -> bool:
@@ -295,8 +330,8 @@ def _check_proof_says_no(report: CheckReport, rt, proves_they_talk) -> bool:
         poll_until(lambda: not set(group.node_names) & set(rt.graph_nodes()), 5.0)
     return report.add("your proof says no when the counter listens on another topic (/line1/items_v2)",
                       said is not True, _said(said),
-                      "A proof that does not look can be fooled: check that /line1/counter subscribes to the "
-                      "topic the belt sensor publishes on; messages on the topic alone do not show that.")
+                      "Messages on the topic alone do not show that the counter hears them: what else does "
+                      "the exercise's second point ask the proof to look at?")
 
 
 def _ask_proof(proves_they_talk, rt):

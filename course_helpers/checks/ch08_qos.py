@@ -262,14 +262,16 @@ ALARM_MARGIN_S = 1.0  # s an alarm may come later than the requested deadline (a
 AFTER_RESUME_S = 1.5  # s watched after the driver speaks again
 
 
-def _endpoints(entities, topic: str, msg_type) -> tuple[list, str]:
-    """The publishers or subscriptions of ``entities`` on ``topic``, and what is wrong ('' if fine)."""
-    found = [e for e in entities if e.topic_name == topic]
+def _endpoint_criterion(report, name: str, entities, topic: str, msg_type, hint: str) -> list:
+    """Add the criterion ``name``: ``entities`` (a node's publishers or subscriptions) include one on
+    ``topic`` of ``msg_type``. Returns the ones found, or [] if the criterion failed."""
+    found, problem = [e for e in entities if e.topic_name == topic], ""
     if not found:
-        return [], f"none on {topic}"
-    if found[0].msg_type is not msg_type:
-        return [], f"its type is {found[0].msg_type.__name__}, not {msg_type.__name__}"
-    return found, ""
+        problem = f"none on {topic}"
+    elif found[0].msg_type is not msg_type:
+        found, problem = [], f"its type is {found[0].msg_type.__name__}, not {msg_type.__name__}"
+    report.add(name, not problem, problem, hint=hint)
+    return found
 
 
 def _run_quiet_spell(rt, label: str, target, params: dict, after_s: float) -> dict[str, float]:
@@ -311,9 +313,10 @@ def check_deadline_watchdog(node_class, rt=None) -> CheckReport:
     with student_node(report, rt, node_class, "watchdog_probe") as (node, probe):
         if node is None:
             return report
-        subs, problem = _endpoints(node.subscriptions, "/odom", Odometry)
-        if not report.add("it subscribes to /odom (nav_msgs/msg/Odometry)", not problem, problem,
-                          hint="Keep the topic and type of the starting code's subscription."):
+        subs = _endpoint_criterion(
+            report, "it subscribes to /odom (nav_msgs/msg/Odometry)", node.subscriptions, "/odom", Odometry,
+            "Keep the topic and type of the starting code's subscription.")
+        if not subs:
             return report
         deadline_s = duration_seconds(subs[0].qos_profile.deadline)
         low, high = WATCHDOG_DEADLINE_S
@@ -333,9 +336,9 @@ def check_deadline_watchdog(node_class, rt=None) -> CheckReport:
                           not wrong, wrong,
                           hint="Section 8: request no more than the driver offers."):
             return report
-        _pubs, problem = _endpoints(node.publishers, "/alarm", String)
-        if not report.add("it publishes on /alarm (std_msgs/msg/String)", not problem, problem,
-                          hint="Keep the topic and type of the starting code's alarm publisher."):
+        if not _endpoint_criterion(
+            report, "it publishes on /alarm (std_msgs/msg/String)", node.publishers, "/alarm", String,
+            "Keep the topic and type of the starting code's alarm publisher."):
             return report
         alarms: list[float] = []  # time.monotonic() of each alarm
         probe.create_subscription(String, "/alarm", lambda _m: alarms.append(time.monotonic()),
@@ -394,9 +397,10 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
     with student_node(report, rt, node_class, "heartbeat_probe") as (node, probe):
         if node is None:
             return
-        pubs, problem = _endpoints(node.publishers, "/heartbeat", String)
-        if not report.add("heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)", not problem,
-                          problem, hint="Section 7 ends with a heartbeat node: start from it."):
+        pubs = _endpoint_criterion(
+            report, "heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)",
+            node.publishers, "/heartbeat", String, "Section 7 ends with a heartbeat node: start from it.")
+        if not pubs:
             return
         offered = pubs[0].qos_profile
         lease = duration_seconds(offered.liveliness_lease_duration)
@@ -408,9 +412,9 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
                           hint="Section 7: which liveliness makes the writer itself prove it is alive, and "
                                "which policy sets the lease?"):
             return
-        _subs, problem = _endpoints(node.subscriptions, "/heartbeat/enable", Bool)
-        if not report.add("heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)", not problem,
-                          problem, hint="The exercise names the topic and its type."):
+        if not _endpoint_criterion(
+            report, "heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
+            node.subscriptions, "/heartbeat/enable", Bool, "The exercise names the topic and its type."):
             return
         seen = {"alive": 0, "lost": 0}  # writers alive now; times one ran out of its lease
 
@@ -451,17 +455,19 @@ def _check_monitor_node(rt, report, node_class) -> None:
     with student_node(report, rt, node_class, "heartbeat_status_probe") as (node, probe):
         if node is None:
             return
-        subs, problem = _endpoints(node.subscriptions, "/heartbeat", String)
-        if not report.add("monitor: it subscribes to /heartbeat (std_msgs/msg/String)", not problem, problem,
-                          hint="Section 7's heartbeat watcher subscribes the same way."):
+        subs = _endpoint_criterion(
+            report, "monitor: it subscribes to /heartbeat (std_msgs/msg/String)",
+            node.subscriptions, "/heartbeat", String,
+            "Section 7's heartbeat watcher subscribes the same way.")
+        if not subs:
             return
         wrong = _mismatches(HEARTBEAT_QOS, subs[0].qos_profile)
         if not report.add("monitor: compatible with a MANUAL_BY_TOPIC heartbeat, lease 0.5 s", not wrong,
                           wrong, hint="Section 8: request no more than the heartbeat offers."):
             return
-        _pubs, problem = _endpoints(node.publishers, "/heartbeat/status", String)
-        if not report.add("monitor: it publishes on /heartbeat/status (std_msgs/msg/String)", not problem,
-                          problem, hint="The exercise names the topic and its type."):
+        if not _endpoint_criterion(
+            report, "monitor: it publishes on /heartbeat/status (std_msgs/msg/String)",
+            node.publishers, "/heartbeat/status", String, "The exercise names the topic and its type."):
             return
         said: list[tuple[float, str]] = []  # (time.monotonic(), text)
         probe.create_subscription(String, "/heartbeat/status",

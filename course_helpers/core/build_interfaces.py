@@ -51,6 +51,7 @@ __all__ = [
     "InterfaceBuildError",
     "MissingToolError",
     "build_package",
+    "find_compiler",
     "fix_python_include_paths",
     "main",
 ]
@@ -241,7 +242,9 @@ def write_stamp(prefix: Path, package: str, stamp: dict[str, object]) -> None:
 # --- the toolchain ------------------------------------------------------------------------
 
 
-def _find_compiler(env_var: str, candidates: tuple[str, ...]) -> str | None:
+def find_compiler(env_var: str, candidates: tuple[str, ...]) -> str | None:
+    """The path of the compiler named by ``env_var`` (CC, CXX) if set, else of the first of
+    ``candidates`` on PATH; None if there is none."""
     chosen = os.environ.get(env_var)
     if chosen:
         return shutil.which(chosen.split()[0])
@@ -255,9 +258,9 @@ def missing_tools() -> list[str]:
         missing.append("cmake")
     if not (shutil.which("make") or shutil.which("ninja")):
         missing.append("make")
-    if not _find_compiler("CC", ("cc", "gcc", "clang")):
+    if not find_compiler("CC", ("cc", "gcc", "clang")):
         missing.append("a C compiler (gcc)")
-    if not _find_compiler("CXX", ("c++", "g++", "clang++")):
+    if not find_compiler("CXX", ("c++", "g++", "clang++")):
         missing.append("a C++ compiler (g++)")
     return missing
 

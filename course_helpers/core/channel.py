@@ -17,6 +17,8 @@ import sys
 import threading
 import time
 
+from course_helpers.core.waiting import changes
+
 CHANNEL_ENV = "COURSE_CHANNEL_FD"
 
 _write_lock = threading.Lock()
@@ -62,6 +64,7 @@ class ChannelReader:
             pass  # closed from our side at stop
         finally:
             self.closed.set()
+            changes.notify()  # the child has ended: a wait for its report can stop
             try:
                 self._file.close()
             except OSError:
@@ -75,6 +78,7 @@ class ChannelReader:
         if isinstance(entry, dict) and "tag" in entry:
             with self._lock:
                 self._reports.append(entry)
+            changes.notify()
 
     def reports(self, tag: str | None = None) -> list[dict]:
         """The data of every report so far (of ``tag`` only, if given), oldest first."""

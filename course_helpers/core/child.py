@@ -9,17 +9,19 @@
     names on the channel first. A target that returns None is a procedure: it runs,
     reports what it measured over the channel, and the process exits.
 ``python -m course_helpers.core.child exec PROGRAM ARGS...``
-    Becomes PROGRAM (same process ID), after arranging to die with the kernel.
+    Runs PROGRAM as its only child and stays as its supervisor (:mod:`.supervisor`), so that
+    the program's own children stop with it, even when the kernel dies.
 
-Either way the child asks Linux for SIGTERM when the kernel dies, and exits at once if
-the kernel is already gone. A ``run`` child also watches for the kernel going away (in case
-that signal is lost, as it can be when the kernel ends with ``os._exit``), and gives its
-clean-up :data:`CLEANUP_S` seconds before it simply exits, so no orphan keeps running.
+Either way the child asks Linux for SIGTERM when the kernel dies, exits at once if the kernel
+is already gone, and ends whatever it started when it exits (it is a child subreaper). A ``run``
+child also watches for the kernel going away (in case that signal is lost, as it can be when the
+kernel ends with ``os._exit``), and gives its clean-up :data:`CLEANUP_S` seconds before it
+simply exits, so no orphan keeps running.
 """
 
 from __future__ import annotations
 
-import ctypes
+import atexit
 import importlib
 import json
 import os
@@ -30,24 +32,19 @@ import time
 import traceback
 
 from course_helpers.core.channel import CHANNEL_ENV, report
+from course_helpers.core.supervisor import (
+    CLEANUP_S,
+    become_subreaper,
+    die_with_parent,
+    end_descendants,
+    orphaned,
+    supervise,
+)
 from course_helpers.core.waiting import poll_until
 
-PR_SET_PDEATHSIG = 1
-CLEANUP_S = 10.0  # how long stopping may take once asked (or orphaned) before the process just exits
 PARENT_CHECK_S = 0.5  # how often the watchdog looks for the kernel
 KEEPER_NODE = "_course_child"  # hidden: holds the process's participant until its nodes have left
 DEPARTURE_S = 0.2  # s; from a stopping child's last node update to its participant's goodbye
-
-
-def die_with_parent() -> None:
-    """Ask Linux to send SIGTERM to this process when the kernel that started it dies."""
-    try:
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-    except OSError:
-        pass
-    expected = os.environ.get("COURSE_PARENT_PID")
-    if expected is not None and os.getppid() != int(expected):
-        sys.exit(0)  # the kernel is already gone
 
 
 def load_target(spec: str):
@@ -77,16 +74,17 @@ class _StopSignal:
 
 
 def _watch_parent(stop: _StopSignal) -> None:
-    """Stop serving when the kernel is gone; end the process if the clean-up then hangs."""
-    expected = os.environ.get("COURSE_PARENT_PID")
+    """Stop serving when the kernel is gone; end the process if the clean-up then hangs.
 
-    def orphaned() -> bool:
-        return expected is not None and os.getppid() != int(expected)
+    Polls: a lost death signal leaves nothing to wait on but the parent PID changing.
+    """
 
     def watch() -> None:
-        poll_until(lambda: stop.event.is_set() or orphaned(), float("inf"), period=PARENT_CHECK_S)
+        poll_until(lambda: stop.event.is_set() or orphaned(), float("inf"), period=PARENT_CHECK_S,
+                   wake_on=None)  # not woken by the node's callbacks
         stop.event.set()
         time.sleep(CLEANUP_S)  # the main thread exits long before this, unless its clean-up hangs
+        end_descendants(0)
         os._exit(0)  # leave no orphan behind
 
     threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
@@ -150,8 +148,8 @@ def run(spec: str, kwargs: dict) -> int:
         _leave(rt, keeper)
 
 
-def become(program: str, args: list[str]) -> None:
-    """Replace this process with ``program`` (the channel is not passed on)."""
+def _drop_channel() -> None:
+    """A program gets no report channel (and is no course child); the supervisor closes its copy."""
     os.environ.pop("COURSE_CHILD", None)
     fd = os.environ.pop(CHANNEL_ENV, None)
     if fd is not None:
@@ -159,14 +157,15 @@ def become(program: str, args: list[str]) -> None:
             os.close(int(fd))
         except OSError:
             pass
-    os.execvp(program, [program, *args])  # searches PATH, like a shell
 
 
 def main(argv: list[str]) -> int:
     os.environ["COURSE_CHILD"] = "1"  # reports go to the channel, or to stdout without one
     die_with_parent()
+    become_subreaper()
     if len(argv) >= 3 and argv[1] == "exec":
-        become(argv[2], argv[3:])
+        supervise(argv[2], argv[3:], _drop_channel)
+    atexit.register(end_descendants)  # registered first, so it runs last (after the process layer's)
     if len(argv) != 4 or argv[1] != "run":
         print("usage: python -m course_helpers.core.child run module:callable '{json kwargs}'\n"
               "       python -m course_helpers.core.child exec PROGRAM [ARGS...]", file=sys.stderr)

@@ -181,7 +181,24 @@ class ConsoleRouter:
         if console is not None:
             console.write(message)
         else:
-            (self._streams[1] if self._streams else sys.__stderr__).write(message)
+            self._cell_stderr().write(message)
+
+    def write_internal_error(self, where: str, exc: BaseException, log_path: str) -> None:
+        """The course's own thread failed: append the traceback to ``log_path`` and show one line.
+
+        A student can do nothing with a traceback through the course's internals; the line names
+        the error and the file that holds the details.
+        """
+        text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+        with open(log_path, "a", encoding="utf-8") as log:
+            log.write(f"--- {time.strftime('%H:%M:%S')} in {where}\n{text}")
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        self._cell_stderr().write(f"[course] internal error in {where}: {type(exc).__name__}"
+                                  f"{': ' + first if first else ''} (traceback in {log_path})\n")
+
+    def _cell_stderr(self):
+        """The stderr of whatever cell runs (never a node console)."""
+        return self._streams[1] if self._streams else sys.__stderr__
 
     def _flush_loop(self) -> None:
         while not self._stop.wait(FLUSH_PERIOD_S):

@@ -43,14 +43,23 @@ mode): the same profile without shared memory.
 **Fast DDS defaults.** ``default_discovery_env(directory)`` gives a child Fast DDS's own timing,
 for comparisons (chapter 07, the benchmark).
 
+**A short lease.** ``short_lease_env(directory, lease_s)`` is the course's profile for this range with
+another lease: peers drop a crashed child that long after its last announcement (chapter 01).
+
+Profiles are written into a folder private to the process (``processes.log_dir()``), never to a
+shared, predictable path that another user could create first.
+
 A user who set ``FASTRTPS_DEFAULT_PROFILES_FILE`` keeps their own profile.
 """
 
 from __future__ import annotations
 
 import os
+import tempfile
 import threading
 from contextlib import contextmanager
+
+from course_helpers.core.errors import CourseError
 
 PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
@@ -71,8 +80,9 @@ LOCALHOST_PROFILE = "course_localhost.xml"  # shared memory + UDP on 127.0.0.1, 
 TIMING_PROFILE = "course_timing.xml"  # tuned timing only, for ranges other than LOCALHOST
 UDP_PROFILE = "course_udp_loopback.xml"  # UDP on 127.0.0.1 only, tuned timing
 DEFAULTS_PROFILE = "fastdds_default_discovery.xml"  # Fast DDS's timing, for comparisons
+LEASE_PROFILE_STEMS = ("course_localhost_lease", "course_timing_lease")  # + _<ms>ms.xml, by range
 _CHOSEN_BY_RANGE = (LOCALHOST_PROFILE, TIMING_PROFILE)  # picked per process, may be replaced
-_STATES_TRANSPORTS = (LOCALHOST_PROFILE, UDP_PROFILE)  # configure localhost-only themselves
+MIN_LEASE_S, MAX_LEASE_S = 0.5, 60.0  # s; a lease must be several announcements long
 
 _environ_lock = threading.RLock()  # held while a context starts with a temporary range
 
@@ -82,13 +92,15 @@ def _duration(tag: str, seconds: float) -> str:
     return f"<{tag}><sec>{whole}</sec><nanosec>{round((seconds - whole) * 1e9)}</nanosec></{tag}>"
 
 
-def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = True) -> str:
+def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = True,
+                lease_s: float = LEASE_S) -> str:
     """A Fast DDS profile: the default participant, and the graph topic's reader.
 
     Args:
         transports: the transports of a localhost-only participant (``"SHM"``, ``"UDPv4"``), or ()
             to leave transports and peers to rmw_fastrtps.
         tuned: the course's timing; False gives Fast DDS's defaults (for comparisons).
+        lease_s: how long peers keep the participant after its last announcement.
     """
     unknown = set(transports) - {"SHM", "UDPv4"}
     if unknown:
@@ -118,7 +130,7 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
         lines += [f"      <userTransports>{ids}</userTransports>",
                   "      <useBuiltinTransports>false</useBuiltinTransports>"]
     lines += ["      <builtin>", "        <discovery_config>",
-              f"          {_duration('leaseDuration', LEASE_S)}",
+              f"          {_duration('leaseDuration', lease_s)}",
               f"          {_duration('leaseAnnouncement', announcement)}",
               "        </discovery_config>"]
     if transports:  # unicast discovery only, to 127.0.0.1: no multicast
@@ -139,7 +151,9 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
 
 
 def write_profile(directory: str, name: str, text: str) -> str:
-    """Write a profile into ``directory`` (once per content) and return its path."""
+    """Write a profile into ``directory``, a folder private to this process (``processes.log_dir()``),
+    once per content, and return its path. A child never reads a half-written file: it is written
+    beside and then renamed into place."""
     path = os.path.join(directory, name)
     try:
         with open(path, encoding="utf-8") as handle:
@@ -147,9 +161,17 @@ def write_profile(directory: str, name: str, text: str) -> str:
                 return path
     except OSError:
         pass
-    with open(path, "w", encoding="utf-8") as handle:
-        handle.write(text)
+    handle, partial = tempfile.mkstemp(dir=directory, prefix=f".{name}.", text=True)
+    with os.fdopen(handle, "w", encoding="utf-8") as out:
+        out.write(text)
+    os.replace(partial, path)
     return path
+
+
+def _states_transports(path: str) -> bool:
+    """True for the course's profiles that set up localhost-only transports themselves."""
+    name = os.path.basename(path)
+    return name in (LOCALHOST_PROFILE, UDP_PROFILE) or name.startswith(LEASE_PROFILE_STEMS[0] + "_")
 
 
 def _is_localhost_range() -> bool:
@@ -176,8 +198,7 @@ def apply_course_discovery(directory: str) -> str:
 def _range_left_to_profile():
     """While a participant is created: the range SYSTEM_DEFAULT, if the profile states LOCALHOST itself."""
     with _environ_lock:
-        if not (_is_localhost_range()
-                and os.path.basename(os.environ.get(PROFILE_ENV, "")) in _STATES_TRANSPORTS):
+        if not (_is_localhost_range() and _states_transports(os.environ.get(PROFILE_ENV, ""))):
             yield
             return
         saved = os.environ[RANGE_ENV]
@@ -220,3 +241,19 @@ def udp_loopback_env(directory: str) -> dict[str, str]:
     """
     path = write_profile(directory, UDP_PROFILE, profile_xml(("UDPv4",)))
     return {RANGE_ENV: "LOCALHOST", PROFILE_ENV: path}
+
+
+def short_lease_env(directory: str, lease_s: float) -> dict[str, str]:
+    """Environment for a child whose participant announces a lease of ``lease_s`` seconds.
+
+    Peers drop a participant that stays silent longer than its lease (Fast DDS's default: 20 s).
+    Everything else is the course's profile for this process's discovery range. Writes the profile
+    into ``directory`` and returns the variables to pass as ``env=`` to ``rt.spawn``.
+    """
+    if isinstance(lease_s, bool) or not isinstance(lease_s, (int, float)) or not (
+            MIN_LEASE_S <= lease_s <= MAX_LEASE_S):
+        raise CourseError(f"lease_s must be {MIN_LEASE_S:g}..{MAX_LEASE_S:g} seconds, got {lease_s!r}")
+    localhost = _is_localhost_range()
+    stem = LEASE_PROFILE_STEMS[0] if localhost else LEASE_PROFILE_STEMS[1]
+    text = profile_xml(("SHM", "UDPv4") if localhost else (), lease_s=lease_s)
+    return {PROFILE_ENV: write_profile(directory, f"{stem}_{round(lease_s * 1000)}ms.xml", text)}

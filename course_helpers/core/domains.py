@@ -10,7 +10,8 @@ exits. So
   pre-create or point elsewhere, and ``TMPDIR`` plays no part;
 * a crashed kernel leaves nothing to clean;
 * the only way to keep a domain from others is a live process holding its socket, which
-  ``ss -xlp | grep ros2-course-domain`` shows with its owner (docs/classroom.md).
+  ``ss -xlp | grep ros2-course-domain`` shows with its PID, and
+  ``python -m course_helpers.core.domains`` with its user and command (docs/classroom.md).
 
 Abstract names belong to a network namespace: on a classroom server all students share one, a
 Kubernetes pod or a container with its own network has its own (and its own loopback, which is
@@ -176,6 +177,53 @@ def domain_holders(domain: int) -> set[int]:
     return holders
 
 
+def domains_held_by(proc) -> list[int]:
+    """The course domains a process holds (its listening sockets with a reservation's name), sorted.
+
+    ``proc`` is a ``psutil.Process``; raises ``psutil.Error`` if it is gone or may not be inspected.
+    """
+    prefix = "@" + SOCKET_PREFIX
+    numbers = {c.laddr[len(prefix):] for c in proc.net_connections(kind="unix")
+               if isinstance(c.laddr, str) and c.laddr.startswith(prefix)}
+    return sorted(int(n) for n in numbers if n.isdigit())
+
+
+def held_domains() -> dict[int, list[str]]:
+    """Every course domain some process holds: ``{domain: ['user pid command', ...]}``.
+
+    A holder this user may not inspect (another user's, without root) is shown as unknown.
+    """
+    import psutil
+
+    found: dict[int, list[str]] = {}
+    for proc in psutil.process_iter():
+        try:
+            mine = domains_held_by(proc)
+            if mine:
+                described = f"{proc.username()} {proc.pid} {' '.join(proc.cmdline())[:100]}"
+                for domain in mine:
+                    found.setdefault(domain, []).append(described)
+        except psutil.Error:
+            continue
+    held = {}
+    for domain in range(FIRST_DOMAIN, LAST_DOMAIN + 1):
+        if domain in found:
+            held[domain] = found[domain]
+        elif not domain_free(domain):
+            held[domain] = ["unknown: another user's process (run as root to see it)"]
+    return held
+
+
+def main() -> int:
+    """``python -m course_helpers.core.domains``: who holds which course domain (root sees everyone)."""
+    held = held_domains()
+    for domain, holders in held.items():
+        for holder in holders:
+            print(f"domain {domain:>3}  {holder}")
+    print(f"{len(held)} of {LAST_DOMAIN - FIRST_DOMAIN + 1} course domains held")
+    return 0
+
+
 def nodes_in_domain(domain_id: int, wait_s: float = 1.5, expect: list[str] | tuple = ()) -> list[str]:
     """Full names of the nodes visible in ``domain_id``, seen by a short-lived participant.
 
@@ -208,3 +256,7 @@ def nodes_in_domain(domain_id: int, wait_s: float = 1.5, expect: list[str] | tup
             probe.destroy_node()
     finally:
         context.try_shutdown()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -5,7 +5,8 @@ executor, the ``/rosout`` reader of the node consoles, the isolated executors of
 chapters 02 and 04 and the child processes all use it. The loop waits without a
 timeout (a timeout would cost a new rcl timer per wait); whoever stops it wakes the
 executor, which ends the wait. A callback's exception never ends the thread: it is
-handed to ``on_error``.
+handed to ``on_error``. A context shut down from outside ends the loop quietly (the runtime
+notices at its next use and heals).
 """
 
 from __future__ import annotations
@@ -16,25 +17,37 @@ from collections.abc import Callable
 
 from rclpy.executors import (
     ConditionReachedException,
+    ExternalShutdownException,
     MultiThreadedExecutor,
     ShutdownException,
     SingleThreadedExecutor,
     TimeoutException,
 )
 
+from course_helpers.core.waiting import changes
+
 ErrorHandler = Callable[[BaseException], None]
 
 
 def spin_until_stopped(executor, stop_requested: Callable[[], bool], on_error: ErrorHandler) -> None:
-    """Spin ``executor`` in this thread until ``stop_requested()`` or its context shuts down."""
+    """Spin ``executor`` in this thread until ``stop_requested()`` or its context shuts down.
+
+    A shutdown is not an error: neither the executor's own nor one from outside (rclpy raises
+    ``ExternalShutdownException`` from its wait then), so it never reaches ``on_error``.
+
+    After each callback it notifies :data:`~course_helpers.core.waiting.changes`, so a wait for what
+    a callback does (a message counted, a reply stored) wakes at once. (A multi-threaded executor
+    runs the callback in its pool after this; such a wait sees it at its next periodic look.)
+    """
     context = executor.context
     while not stop_requested() and context.ok():
         try:
             executor._spin_once_impl(None, stop_requested)
-        except (ShutdownException, ConditionReachedException):
+        except (ShutdownException, ExternalShutdownException, ConditionReachedException):
             continue  # the loop condition decides
         except Exception as exc:
             on_error(exc)
+        changes.notify()
 
 
 class SpinThread:

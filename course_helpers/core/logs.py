@@ -41,3 +41,14 @@ class RosoutReader:
             self.node.destroy_node()
         except Exception:  # the context was shut down from outside: nothing left to free
             pass
+
+
+def log_to_consoles(router) -> Callable:
+    """An ``on_log`` for :class:`RosoutReader` that writes each entry, as one line, to its node's console."""
+    from course_helpers.core.console import format_log_line
+
+    def on_log(entry) -> None:
+        stamp = entry.stamp.sec + entry.stamp.nanosec * 1e-9
+        router.write_log(entry.name, format_log_line(entry.level, entry.name, entry.msg, stamp))
+
+    return on_log

@@ -94,10 +94,13 @@ def hook_installed() -> bool:
 
 
 def destroy_fully(node: Node) -> None:
-    """Destroy a node and the action servers and clients it still holds.
+    """Destroy a node and the action servers and clients it still holds, and a managed node's
+    state machine.
 
     rclpy's ``Node.destroy_node()`` leaves action servers and clients alive, so the node would
-    linger in the graph; a node class that already destroyed its own has removed them.
+    linger in the graph; a node class that already destroyed its own has removed them. A
+    ``LifecycleNode``'s state machine holds the rcl node too, and rclpy 7.1's ``destroy_node()``
+    leaves it: the node would stay in the graph until Python's garbage collector freed the object.
     """
     from rclpy.action import ActionClient, ActionServer
 
@@ -105,6 +108,9 @@ def destroy_fully(node: Node) -> None:
     for waitable in list(node.waitables):
         if isinstance(waitable, (ActionServer, ActionClient)):
             waitable.destroy()
+    state_machine = getattr(node, "_state_machine", None)  # rclpy.lifecycle.LifecycleNodeMixin
+    if state_machine is not None:
+        state_machine.destroy_when_not_in_use()
 
 
 def bare_node(context, name: str):

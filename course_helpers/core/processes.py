@@ -8,21 +8,26 @@ eProsima's discovery server (chapter 07) and launch groups (chapter 06) all go t
   first, so re-running a cell never leaves two;
 * die with the parent: the child asks Linux to send it SIGTERM when the kernel dies, and
   exits at once if the kernel is already gone. Processes are forked from one long-lived
-  launcher thread, because Linux ties that signal to the thread that forked the child;
+  launcher thread, because Linux ties that signal to the thread that forked the child. What
+  a child started goes too (:mod:`.supervisor`);
 * the channel: each child gets a pipe for structured reports (:mod:`.channel`);
 * stop together: SIGTERM to all, then wait, then SIGKILL after a grace period;
 * the registry of what runs, and reaping everything at exit.
 
 Children start in their own session, so the notebook's interrupt button never reaches
-them; their output (stdout and stderr) goes to a log file.
+them; their output (stdout and stderr) goes to a log file. Every signal goes to the child's
+whole process group (stop, kill, a timeout, the reaping at exit), so a program's own children
+(compilers under a build step, nodes under a shell) stop with it (:mod:`.process_groups`).
 """
 
 from __future__ import annotations
 
 import atexit
+import codecs
 import json
 import os
 import queue
+import selectors
 import shutil
 import signal
 import subprocess
@@ -36,12 +41,17 @@ from concurrent.futures import Future
 from course_helpers.core.channel import CHANNEL_ENV, ChannelReader
 from course_helpers.core.dds_config import environment_snapshot
 from course_helpers.core.errors import CourseError
-from course_helpers.core.waiting import poll_until
+from course_helpers.core.process_groups import ProcessGroup
+from course_helpers.core.supervisor import PARENT_ENV
+from course_helpers.core.waiting import UNNOTIFIED_PERIOD_S, poll_until
 
 STOP_GRACE_S = 5.0  # s; SIGTERM, then SIGKILL after this long (a clean stop takes about 0.4 s, and
 # seconds on a loaded machine: a process killed before its goodbye stays in the graph for its lease)
-PARENT_ENV = "COURSE_PARENT_PID"
+KILL_WAIT_S = 5.0  # s; how long a SIGKILLed process may take to be gone
+DRAIN_S = 1.0  # s; after a timeout, how long `run` still reads output (a process that left the group
+# may hold the pipe open for ever)
 OUTPUT_TAIL_CHARS = 2000
+CHANNEL_PERIOD_S = 1.0  # s; a wait for a report still looks this often (the channel's events wake it)
 
 _lock = threading.RLock()
 _registry: dict[tuple[str, str], ChildProcess] = {}
@@ -64,6 +74,8 @@ class ChildProcess:
         self.target = target
         self.started = time.monotonic()
         self.stop_requested = False
+        self._exit = ProcessGroup(process)
+        self._program_pid: int | None = None  # a program child's program, once found (see pid)
 
     # ------------------------------------------------------------------ state
     @property
@@ -73,17 +85,37 @@ class ChildProcess:
 
     @property
     def pid(self) -> int:
+        """The PID of the process that runs the target or the program.
+
+        A program child (:func:`program_argv`) is a small supervisor whose only child is the
+        program: this is the program's PID once the supervisor has forked it (the supervisor's
+        own for the few milliseconds before). :attr:`leader_pid` is the process group's leader.
+        """
+        if self._program_pid is None and self.argv[1:4] == PROGRAM_ARGV[1:4] and self.alive:
+            import psutil
+
+            try:
+                children = psutil.Process(self.process.pid).children()
+            except psutil.Error:
+                children = []
+            if children:
+                self._program_pid = children[0].pid
+        return self._program_pid or self.process.pid
+
+    @property
+    def leader_pid(self) -> int:
+        """The PID of the child the kernel started: its process group's leader (what stop signals)."""
         return self.process.pid
 
     @property
     def alive(self) -> bool:
         """True while the process runs."""
-        return self.process.poll() is None
+        return self._exit.code() is None
 
     @property
     def returncode(self) -> int | None:
         """The exit code, or None while running (negative: ended by that signal)."""
-        return self.process.poll()
+        return self._exit.code()
 
     # ------------------------------------------------------------------ output and reports
     def log(self) -> str:
@@ -116,7 +148,10 @@ class ChildProcess:
         from course_helpers.core.errors import WaitTimeout
 
         what = what or f"its {tag!r} report"
-        poll_until(lambda: self.last(tag) is not None or not self.alive, timeout)
+        # a report, and the end of a child with a channel, wake the wait; a child without one is
+        # looked at every UNNOTIFIED_PERIOD_S
+        period = CHANNEL_PERIOD_S if self.channel is not None else UNNOTIFIED_PERIOD_S
+        poll_until(lambda: self.last(tag) is not None or not self.alive, timeout, period)
         found = self.last(tag)
         if found is None and self.channel is not None and not self.alive:
             self.channel.close()  # the pipe may still hold the last reports
@@ -132,42 +167,42 @@ class ChildProcess:
         """Wait until the process exits on its own; its exit code. Raises WaitTimeout."""
         from course_helpers.core.errors import WaitTimeout
 
-        if not poll_until(lambda: not self.alive, timeout):
+        if not self._exit.wait(timeout):
             raise WaitTimeout(f"timed out after {timeout:g} s waiting for {what or 'it to finish'} "
                               f"({self.group} process {self.label!r})")
+        self._exit.finish()
         if self.channel is not None:
             self.channel.close()
         return self.returncode
 
     # ------------------------------------------------------------------ stopping
     def kill(self) -> None:
-        """Kill the process at once with SIGKILL, as a crash would (no clean shutdown)."""
-        if self.alive:
-            self.process.kill()
-        self.process.wait(timeout=5)
+        """Kill the process and its whole group at once with SIGKILL, as a crash would."""
+        self._exit.signal_group(signal.SIGKILL)
+        self._exit.wait(KILL_WAIT_S)
+        self._exit.finish()
 
     def request_stop(self) -> None:
-        """Send the stop signal and return at once (:meth:`stop` then waits for the exit)."""
+        """Send the stop signal to the process group and return at once (:meth:`stop` then waits)."""
         if self.alive and not self.stop_requested:
-            self.process.send_signal(self.stop_signal)
+            self._exit.signal_group(self.stop_signal)
             self.stop_requested = True
 
     def stop(self, grace_s: float = STOP_GRACE_S) -> int:
-        """Ask the process to end (SIGTERM, or SIGINT for a ``ros2 run``-style program); SIGKILL it
-        if it has not ended within ``grace_s``."""
+        """Ask the process group to end (SIGTERM, or SIGINT for a ``ros2 run``-style program); SIGKILL
+        it if the process has not ended within ``grace_s``. What is left of the group is killed."""
         if self.alive:
             self.request_stop()
-            try:
-                self.process.wait(timeout=grace_s)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(timeout=5)
+            if not self._exit.wait(grace_s):
+                self._exit.signal_group(signal.SIGKILL)
+                self._exit.wait(KILL_WAIT_S)
+        self._exit.finish()
         if self.channel is not None:
             self.channel.close()
         with _lock:
             if _registry.get((self.group, self.label)) is self:
                 del _registry[(self.group, self.label)]
-        return self.process.returncode
+        return self.returncode
 
     def __repr__(self) -> str:
         state = "running" if self.alive else f"exited {self.returncode}"
@@ -214,9 +249,12 @@ def python_target_argv(target, kwargs: dict | None = None) -> list[str]:
     return [sys.executable, "-m", "course_helpers.core.child", "run", spec, payload]
 
 
+PROGRAM_ARGV = [sys.executable, "-m", "course_helpers.core.child", "exec"]
+
+
 def program_argv(program: str, *args: str) -> list[str]:
     """The command line that runs an executable so that it dies with the kernel."""
-    return [sys.executable, "-m", "course_helpers.core.child", "exec", program, *map(str, args)]
+    return [*PROGRAM_ARGV, program, *map(str, args)]
 
 
 # ---------------------------------------------------------------------- starting
@@ -323,50 +361,94 @@ def run(argv: list[str], *, env: dict | None = None, cwd: str | None = None, tim
     """Run a command to its end (a build step), passing each output line to ``on_line``.
 
     Returns ``(exit code, everything it printed)``; the output is also written to the open text
-    file ``log`` if given. A command still running after ``timeout`` seconds is killed and reported with
-    :class:`CourseError`. It dies with the kernel like every other child.
+    file ``log`` if given. A command still running after ``timeout`` seconds is killed with its
+    whole process group (the compilers under a build tool too) and reported with
+    :class:`CourseError`, also when a process that left the group still holds the output open.
+    It dies with the kernel like every other child.
     """
     full_env = _environment(env)
     full_env.pop(CHANNEL_ENV, None)
+    # the wrapper checks that its parent is this process: a PID inherited from whoever started this
+    # process (a graded kernel's grader) would make it exit 0 at once, having run nothing
+    full_env[PARENT_ENV] = str(os.getpid())
 
     def fork() -> subprocess.Popen:
         return subprocess.Popen(program_argv(argv[0], *argv[1:]), stdin=subprocess.DEVNULL,
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=full_env,
-                                cwd=cwd or os.getcwd(), text=True, errors="replace", bufsize=1,
-                                start_new_session=True)
+                                cwd=cwd or os.getcwd(), start_new_session=True)
 
     try:
         process = _launcher.run(fork)
     except OSError as exc:
         raise CourseError(f"could not run {argv[0]}: {exc}") from None
-    timed_out = threading.Event()
-
-    def kill_on_timeout() -> None:
-        timed_out.set()
-        process.kill()
-
-    timer = threading.Timer(timeout, kill_on_timeout)
-    timer.daemon = True
-    timer.start()
+    watch = ProcessGroup(process)
     lines: list[str] = []
+
+    def emit(line: str) -> None:
+        lines.append(line)
+        if log is not None:
+            log.write(line + "\n")
+        if on_line is not None:
+            on_line(line)
+
     try:
-        for line in process.stdout:
-            line = line.rstrip("\n")
-            lines.append(line)
-            if log is not None:
-                log.write(line + "\n")
-            if on_line is not None:
-                on_line(line)
-        code = process.wait()
+        timed_out = not _read_lines(process.stdout.fileno(), time.monotonic() + timeout, emit,
+                                    on_timeout=lambda: watch.signal_group(signal.SIGKILL))
+        if not watch.wait(0 if timed_out else STOP_GRACE_S):  # the output ended: so does the process
+            watch.signal_group(signal.SIGKILL)
+            watch.wait(KILL_WAIT_S)
     finally:
-        timer.cancel()
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-    if timed_out.is_set():
+        watch.signal_group(signal.SIGKILL)  # nothing of the group outlives the step (a no-op if done)
+        watch.wait(KILL_WAIT_S)
+        watch.finish()
+        process.stdout.close()
+    if timed_out:
         raise CourseError(f"{os.path.basename(argv[0])} took longer than {timeout:g} s and was stopped. "
                           "Its last lines:\n" + "\n".join(lines[-20:]))
-    return code, "\n".join(lines)
+    return watch.code(), "\n".join(lines)
+
+
+def _read_lines(fd: int, deadline: float, emit: Callable[[str], None],
+                on_timeout: Callable[[], None]) -> bool:
+    """Pass each line read from ``fd`` to ``emit`` until the end of the output; False on a timeout.
+
+    Lines end with ``\\n``, ``\\r\\n`` or ``\\r`` (a progress line), as in text mode. At ``deadline``
+    it calls ``on_timeout`` (which kills the writers) and reads what is left for :data:`DRAIN_S`
+    more at the most: a writer outside the process group may keep the pipe open.
+    """
+    decoder = codecs.getincrementaldecoder("utf-8")(errors="replace")
+    pending = ""
+    finished = True
+    with selectors.DefaultSelector() as selector:
+        selector.register(fd, selectors.EVENT_READ)
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                if not finished:
+                    break
+                finished = False
+                on_timeout()
+                deadline = time.monotonic() + DRAIN_S
+                continue
+            if not selector.select(remaining):
+                continue
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                break
+            pending += decoder.decode(chunk)
+            held = "\r" if pending.endswith("\r") else ""  # the \n of a \r\n may be in the next chunk
+            *complete, pending = _universal(pending[:len(pending) - len(held)]).split("\n")
+            pending += held
+            for line in complete:
+                emit(line)
+    pending = _universal(pending + decoder.decode(b"", final=True)).removesuffix("\n")
+    for line in pending.split("\n") if pending else ():
+        emit(line)
+    return finished
+
+
+def _universal(text: str) -> str:
+    return text.replace("\r\n", "\n").replace("\r", "\n")
 
 
 # ---------------------------------------------------------------------- the registry

@@ -11,20 +11,23 @@ Every chapter starts with ``rt = get_runtime()``. The runtime
 * waits for futures, conditions and messages from the notebook without spinning;
 * runs nodes in child processes through the process layer, and stops them with itself;
 * isolates each kernel in its own ROS domain with localhost-only discovery;
-* heals: if its context is shut down from outside (``rclpy.shutdown()``, or an interrupt
-  while rclpy's own signal handler is installed), the next use stops everything that is
-  left and starts afresh, and says so in one line.
+* heals: if its context is shut down from outside (``rclpy.shutdown(context=rt.context)``, or
+  an interrupt while an rclpy signal handler is installed), the next use stops everything that
+  is left and starts afresh, and says in one line which cells to run again (:mod:`.healing`).
+
+In a notebook, a textbook ``rclpy.init()`` installs no signal handler, so an interrupt never
+shuts this context down (:mod:`course_helpers.notebook.interrupts`).
 """
 
 from __future__ import annotations
 
 import atexit
+import functools
 import os
 import threading
 import time
 from collections.abc import Callable
 
-import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -32,7 +35,7 @@ from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_opti
 
 from course_helpers.core import console as _console
 from course_helpers.core import processes
-from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S, apply_course_discovery, init_context
+from course_helpers.core.dds_config import apply_course_discovery, init_context
 from course_helpers.core.domains import DomainChoice, choose_domain
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.executors import (
@@ -40,10 +43,13 @@ from course_helpers.core.executors import (
     CourseSingleThreadedExecutor,
     SpinThread,
 )
-from course_helpers.core.logs import RosoutReader
-from course_helpers.core.names import as_full_name, full_name, node_full_names
+from course_helpers.core.graph_view import GraphView
+from course_helpers.core.healing import Origins
+from course_helpers.core.logs import RosoutReader, log_to_consoles
+from course_helpers.core.names import as_full_name, full_name
 from course_helpers.core.node_hook import build_nodes, destroy_fully
-from course_helpers.core.spawning import ChildProcesses
+from course_helpers.core.spawning import ChildNodes
+from course_helpers.core.status import status_of, status_table
 from course_helpers.core.validation import (
     check_depth,
     check_namespace,
@@ -52,21 +58,24 @@ from course_helpers.core.validation import (
     interface_name,
     resolve_interface,
 )
-from course_helpers.core.versions import rclpy_version
-from course_helpers.core.waiting import poll_until, wait_until
+from course_helpers.core.waiting import poll_until, wait_for_future, wait_until
 
-INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's daemon nodes
 EXECUTORS = ("single", "multi")
-# A new participant may learn of an older one only at its next periodic announcement (every 3 s
-# outside the course): by this long after the start, the graph shows what was already running.
-GRAPH_SETTLE_S = DEFAULT_ANNOUNCEMENT_S + 0.3
-HEALED_MESSAGE = (
-    "[course] ROS was shut down from outside the course runtime (by rclpy.shutdown(), or by an "
-    "interrupt while rclpy's signal handler was installed, as a plain rclpy.init() does). The "
-    "runtime has restarted: run the cells that add your nodes again. {handler}")
+HANDLER_REMOVED = ("rclpy's signal handler has been removed again, so the interrupt button stops "
+                   "only the cell.")
+INTERNAL_ERRORS_LOG = "runtime-errors.log"  # in log_dir: the tracebacks of the runtime's own threads
 
 
-class CourseRuntime(ChildProcesses):
+def _children_method(method: Callable) -> Callable:
+    """A runtime method that calls ``method`` on the runtime's ChildNodes (same name, signature, docs)."""
+    @functools.wraps(method)
+    def call(self, *args, **kwargs):
+        return method(self._children, *args, **kwargs)
+
+    return call
+
+
+class CourseRuntime:
     """One per kernel: see the module docstring. Get it with :func:`get_runtime`."""
 
     def __init__(self, executor: str = "single", threads: int = 4):
@@ -78,18 +87,20 @@ class CourseRuntime(ChildProcesses):
         self.executor = None
         self.errors: list[str] = []
         self.restarts = 0  # how often the runtime healed itself
+        self.origins = Origins()  # which cell added each node and child, for the healing notice
         self._nodes: dict[str, Node] = {}
         self._node_consoles: dict[int, _console.NodeConsole] = {}
         self._spinner: SpinThread | None = None
         self._lock = threading.RLock()
         self._active = False  # started and not stopped by us
         self._started_at = 0.0
-        self._graph_settled = False
         self._router = _console.ConsoleRouter()
         self._in_kernel = _console.in_jupyter_kernel()
-        self._internal: Node | None = None
-        self._internal_spun = False
+        self._graph: GraphView | None = None
+        self._graph_spun = False
         self._log_reader: RosoutReader | None = None
+        self._children = ChildNodes(self._graph_view, self._router if self._in_kernel else None,
+                                    self._ensure_running)
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -122,13 +133,14 @@ class CourseRuntime(ChildProcesses):
                                                              self._router, self._record_error)
             if self._in_kernel:
                 self._router.start()
-                self._log_reader = RosoutReader(self.context, self._on_log, self._log_reader_error)
+                self._log_reader = RosoutReader(
+                    self.context, log_to_consoles(self._router),
+                    lambda exc: self._internal_error("the /rosout reader", exc))
             self._spinner = SpinThread(self.executor, "ros-executor",
-                                       lambda exc: self._record_error(None, "the executor", exc),
+                                       lambda exc: self._internal_error("the executor", exc),
                                        on_exit=lambda: self._router.enter(None)).start()
             self._active = True
             self._started_at = time.monotonic()
-            self._graph_settled = False
         return self
 
     def stop(self) -> None:
@@ -145,16 +157,17 @@ class CourseRuntime(ChildProcesses):
             if self._log_reader is not None:
                 self._log_reader.stop()
                 self._log_reader = None
-            if self._internal is not None:
-                _quietly(self._internal.destroy_node)
-                self._internal = None
-                self._internal_spun = False
+            if self._graph is not None:
+                self._graph.close()
+                self._graph = None
+                self._graph_spun = False
             if self.executor is not None:
                 _quietly(self.executor.shutdown, timeout_sec=1.0)
                 self.executor = None
             if self.context is not None and self.context.ok():
                 self.context.try_shutdown()
             self._router.stop()
+            self.origins.clear()
 
     def restart(self, executor: str | None = None) -> CourseRuntime:
         """Stop and start again (optionally switching to the 'single' or 'multi' executor)."""
@@ -166,17 +179,17 @@ class CourseRuntime(ChildProcesses):
         return self.start()
 
     def _heal(self) -> None:
-        """The context was shut down from outside: stop everything left, start again, say so."""
-        self.stop()
+        """The context was shut down from outside: stop everything left, start again, and say in
+        one line which cells to run again."""
         handler = ""
         if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
             uninstall_signal_handlers()
-            handler = ("rclpy's signal handler has been removed again, so the interrupt button "
-                       "stops only the cell; use rt.add(...) instead of rclpy.init()/rclpy.spin() "
-                       "to keep it that way.")
+            handler = HANDLER_REMOVED
+        notice = self.origins.healed_notice(list(self._nodes), list(self.children()), handler)
+        self.stop()
         self.restarts += 1
         self.start()
-        print(HEALED_MESSAGE.format(handler=handler).strip(), flush=True)
+        print(notice, flush=True)
 
     def _ensure_running(self) -> None:
         if not self.running:
@@ -237,6 +250,7 @@ class CourseRuntime(ChildProcesses):
             node = self._nodes.pop(fqn, None)
         if node is None:
             return False
+        self.origins.forget_node(fqn)
         self._destroy(node)
         return True
 
@@ -266,6 +280,7 @@ class CourseRuntime(ChildProcesses):
         fqn = node.get_fully_qualified_name()
         with self._lock:
             self._nodes[fqn] = node
+            self.origins.node_added(fqn)
             if self._in_kernel:
                 show = console is None or bool(console)
                 self._node_consoles[id(node)] = self._router.open(node.get_logger().name, fqn, show=show)
@@ -299,6 +314,26 @@ class CourseRuntime(ChildProcesses):
     def _in_executor_thread(self) -> bool:
         return self._spinner is not None and threading.current_thread() is self._spinner.thread
 
+    # ------------------------------------------------------------------ child processes (core/spawning.py)
+    @functools.wraps(ChildNodes.spawn)
+    def spawn(self, name: str, *args, **kwargs) -> processes.ChildProcess:
+        self.origins.child_started(name)  # first: a child whose wait fails still runs
+        return self._children.spawn(name, *args, **kwargs)
+
+    @functools.wraps(ChildNodes.stop_children)
+    def stop_children(self, names) -> dict[str, int | None]:
+        names = list(names)
+        for name in names:
+            self.origins.forget_child(name)
+        return self._children.stop_children(names)
+
+    def stop_child(self, name: str) -> int | None:
+        """Stop a child process by name (SIGTERM, then SIGKILL); returns its exit code."""
+        return self.stop_children([name]).get(name)
+
+    wait_for_child_node = _children_method(ChildNodes.wait_for_child_node)
+    children = _children_method(ChildNodes.children)
+
     # ------------------------------------------------------------------ waiting
     def call_in_executor(self, function: Callable, *args, timeout: float = 5.0):
         """Run ``function(*args)`` in the executor thread and return its result.
@@ -312,23 +347,15 @@ class CourseRuntime(ChildProcesses):
         self.executor.wake()
         return self.wait_for_future(task, timeout=timeout, what=getattr(function, "__name__", "task"))
 
-    def wait_for_future(self, future, timeout: float = 5.0, what: str = "the future"):
-        """Wait (without spinning) until ``future`` is done; return its result.
-
-        Raises :class:`WaitTimeout` naming ``what`` after ``timeout`` seconds.
-        """
-        done = threading.Event()
-        future.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout):
-            raise WaitTimeout(f"timed out after {timeout:g} s waiting for {what}")
-        if future.exception() is not None:
-            raise future.exception()
-        return future.result()
+    wait_for_future = staticmethod(wait_for_future)
 
     def wait_until(self, predicate: Callable[[], object], timeout: float = 5.0,
                    what: str = "the condition") -> bool:
         """Wait until ``predicate()`` is true; if not, raise :class:`WaitTimeout` naming ``what``
-        and the nodes the graph lists at that moment (what is there when something is not)."""
+        and the nodes the graph lists at that moment (what is there when something is not).
+
+        The wait wakes on graph changes, child reports and this kernel's callbacks, and looks every
+        20 ms besides (:mod:`.waiting`)."""
         try:
             return wait_until(predicate, timeout, what)
         except WaitTimeout as exc:
@@ -359,21 +386,15 @@ class CourseRuntime(ChildProcesses):
         return received[:count]
 
     def wait_for_node(self, fqn: str, timeout: float = 10.0) -> None:
-        """Wait until a node (in any process of this domain) shows up in the ROS graph."""
+        """Wait until a node (in any process of this domain) shows up in the ROS graph (woken by the
+        graph's changes)."""
         fqn = as_full_name(fqn)
-        wait_until(lambda: fqn in self.graph_nodes(), timeout, f"node {fqn} in the graph")
+        graph = self._graph_view()
+        wait_until(lambda: fqn in graph.nodes(), timeout, f"node {fqn} in the graph", graph.wait_period)
 
     # ------------------------------------------------------------------ the graph
     def graph_nodes(self, include_hidden: bool = False) -> list[str]:
-        """Full names of all nodes discovered in this domain (the live graph).
-
-        A node listed without a single endpoint is left out. rclpy gives every node at least its
-        ``/parameter_events`` publisher, so such an entry is either a node still being created or
-        one that rmw keeps listing after its process has left (see :mod:`.child` on the goodbye
-        that overtakes a node's last graph update).
-        """
-        names = node_full_names(self._graph_node().get_node_names_and_namespaces(), include_hidden)
-        return [fqn for fqn in names if any(self._graph_entry(fqn))]
+        return self._graph_view().nodes(include_hidden)
 
     @property
     def graph(self) -> Node:
@@ -381,79 +402,54 @@ class CourseRuntime(ChildProcesses):
 
         It is spun by the executor from then on, so subscriptions and clients created on it work.
         """
-        node = self._graph_node()
-        if not self._internal_spun:
+        node = self._graph_view().node
+        if not self._graph_spun:
             self.executor.add_node(node)  # every spun node costs time in each wait: only when needed
-            self._internal_spun = True
+            self._graph_spun = True
         return node
 
     def settle_graph(self) -> None:
-        """Wait, once per start, until discovery has found the processes that were already running.
+        self._graph_view().settle()
 
-        A new participant announces itself at start, and the others answer; ros2cli keeps a
-        daemon running for the same reason. ``%ros2`` calls this before its first graph query,
-        so a command run right after the runtime started does not show an empty graph.
-        """
-        self._graph_node()
-        if not self._graph_settled:
-            remaining = self._started_at + GRAPH_SETTLE_S - time.monotonic()
-            if remaining > 0:
-                time.sleep(remaining)
-            self._graph_settled = True
+    graph_nodes.__doc__ = GraphView.nodes.__doc__
+    settle_graph.__doc__ = GraphView.settle.__doc__
 
     def graph_if_running(self) -> Node | None:
         """The hidden graph node while the runtime runs, else None (never starts the runtime)."""
         with self._lock:
             if not self.running:
                 return None
-        return self._graph_node()
+        return self._graph_view().node
 
-    def _graph_node(self) -> Node:
+    def _graph_view(self) -> GraphView:
+        """The graph as this runtime sees it (its hidden node, made on first use)."""
         self._ensure_running()
         with self._lock:
-            if self._internal is None:
-                self._internal = Node(INTERNAL_NODE, context=self.context, enable_rosout=False,
-                                      start_parameter_services=False)
-            return self._internal
+            if self._graph is None:
+                self._graph = GraphView(self.context, self._started_at)
+            return self._graph
 
     # ------------------------------------------------------------------ status
     def status(self) -> dict:
-        """Versions, middleware, domain, discovery range, nodes and child processes."""
+        """Versions, middleware, domain, discovery range, nodes, child processes, and the other
+        notebooks of this Jupyter server that run ROS (:func:`.status.status_of`)."""
         self._ensure_running()
-        return {
-            "rclpy": rclpy_version(),
-            "rmw": rclpy.get_rmw_implementation_identifier(),
-            "domain_id": self.domain.domain_id,
-            "domain_chosen_by": self.domain.source,
-            "discovery_range": os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"),
-            "executor": ("SingleThreadedExecutor" if self.executor_kind == "single"
-                         else "MultiThreadedExecutor"),
-            "nodes": self.nodes(),
-            "children": {n: (c.pid, "running" if c.alive else f"exited {c.returncode}")
-                         for n, c in self.children().items()},
-            "callback_errors": len(self.errors),
-        }
+        return status_of(self)
 
     def show_status(self) -> None:
         """Print :meth:`status` as an aligned table."""
-        for key, value in self.status().items():
-            if isinstance(value, list):
-                value = ", ".join(value) or "(none)"
-            elif isinstance(value, dict):
-                value = ", ".join(f"{n} (pid {p}, {s})" for n, (p, s) in value.items()) or "(none)"
-            print(f"{key:<18} {value}")
+        print(status_table(self.status()))
 
     def _record_error(self, console, where: str, exc: BaseException) -> None:
+        """A node's callback raised: its traceback goes to the node's console (or the cell's output)."""
         self.errors.append(f"{where}: {type(exc).__name__}: {exc}")
         self._router.write_error(console, where, exc)
 
-    def _log_reader_error(self, exc: BaseException) -> None:
-        self._record_error(None, "the /rosout reader", exc)
-
-    def _on_log(self, entry) -> None:
-        stamp = entry.stamp.sec + entry.stamp.nanosec * 1e-9
-        line = _console.format_log_line(entry.level, entry.name, entry.msg, stamp)
-        self._router.write_log(entry.name, line)
+    def _internal_error(self, where: str, exc: BaseException) -> None:
+        """The runtime's own thread ('the executor', 'the /rosout reader') failed: one line for the
+        student, the traceback in :data:`INTERNAL_ERRORS_LOG` in :attr:`log_dir`."""
+        self.errors.append(f"{where}: {type(exc).__name__}: {exc}")
+        self._router.write_internal_error(where, exc, os.path.join(self.log_dir, INTERNAL_ERRORS_LOG))
 
 
 def _check_executor(kind) -> None:

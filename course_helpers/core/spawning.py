@@ -1,24 +1,40 @@
 """Nodes in child processes, as the runtime starts them: ``rt.spawn(...)`` and friends.
 
-A mix-in of :class:`course_helpers.core.runtime.CourseRuntime`; the processes themselves are
-started, tracked and stopped by the process layer (:mod:`.processes`).
+:class:`ChildNodes` is what the runtime delegates its child-process methods to. It needs three
+things from the runtime, passed in explicitly: the current :class:`~.graph_view.GraphView` (to see
+a child's nodes arrive and leave), the console router (a child's output in the notebook, or None
+outside one), and a way to make sure the runtime runs. The processes themselves are started,
+tracked and stopped by the process layer (:mod:`.processes`).
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from course_helpers.core import processes
 from course_helpers.core.errors import CourseError, WaitTimeout
-from course_helpers.core.names import split_full_name
+from course_helpers.core.graph_view import GraphView
 from course_helpers.core.validation import check_node_name
 from course_helpers.core.waiting import poll_until
 
 ENTRY_SETTLE_S = 0.15  # s; a new node's graph entry unchanged this long counts as complete
+OLD_NODES_GONE_S = 3.0  # s; how long a re-spawn waits for the old process's nodes to leave the graph
 
 
-class ChildProcesses:
-    """The runtime's child-process methods (the runtime provides the graph and the consoles)."""
+class ChildNodes:
+    """The child-process nodes of one runtime.
+
+    Args:
+        graph: returns the runtime's current graph view (starting the runtime if needed).
+        consoles: the router that shows a child's output under its cell, or None outside a notebook.
+        ensure_running: starts the runtime if it is not running.
+    """
+
+    def __init__(self, graph: Callable[[], GraphView], consoles, ensure_running: Callable[[], None]):
+        self._graph = graph
+        self._consoles = consoles
+        self._ensure_running = ensure_running
 
     def spawn(self, name: str, target, params: dict | None = None, wait_for: str | None = None,
               timeout: float = 15.0, env: dict | None = None) -> processes.ChildProcess:
@@ -35,13 +51,14 @@ class ChildProcesses:
         argv = processes.python_target_argv(target, params)  # a bad target fails before anything stops
         self._ensure_running()
         old = processes.get(name)
-        old_nodes = (old.last("ready") or {}).get("nodes", []) if old is not None else []
+        old_nodes = set((old.last("ready") or {}).get("nodes", [])) if old is not None else set()
         processes.stop([name])
         if old_nodes:  # the old process's nodes leave the graph before the new ones are awaited
-            poll_until(lambda: not set(old_nodes) & set(self.graph_nodes()), 3.0)
+            graph = self._graph()
+            poll_until(lambda: not old_nodes & set(graph.nodes()), OLD_NODES_GONE_S, graph.wait_period)
         child = processes.start(name, argv, env=env, target=processes.target_spec(target))
-        if self._in_kernel:
-            self._router.open(name, f"child process {name}", show=False)
+        if self._consoles is not None:
+            self._consoles.open(name, f"child process {name}", show=False)
         if wait_for:
             started = time.monotonic()
             child.wait_for_report("ready", timeout, f"its nodes to be created (waiting for {wait_for})")
@@ -55,34 +72,26 @@ class ChildProcesses:
         A node's endpoints reach the graph one update after another, and the first update can list
         the node before all of them: after the node appears, this waits (within ``timeout``) until
         its publishers, subscriptions, services and clients stay the same for ``ENTRY_SETTLE_S``.
+        Both waits wake on the graph's change events (and on the child's end).
         """
+        graph = self._graph()
         started = time.monotonic()
-        if not poll_until(lambda: fqn in self.graph_nodes() or not child.alive, timeout):
+        if not poll_until(lambda: fqn in graph.nodes() or not child.alive, timeout, graph.wait_period):
             raise WaitTimeout(f"{child.group} process {child.label!r} did not show node {fqn} in the graph "
                               f"within {timeout:g} s. Its output:\n{child.output_tail()}")
-        if fqn not in self.graph_nodes():
+        if fqn not in graph.nodes():
             raise child.failure(f"node {fqn} appeared")
-        entry, since = self._graph_entry(fqn), time.monotonic()
+        entry, since = graph.entry(fqn), time.monotonic()
 
         def settled() -> bool:
             nonlocal entry, since
-            now = self._graph_entry(fqn)
+            now = graph.entry(fqn)
             if now != entry:
                 entry, since = now, time.monotonic()
             return time.monotonic() - since >= ENTRY_SETTLE_S
 
-        poll_until(settled, max(0.0, timeout - (time.monotonic() - started)), period=0.02)
-
-    def _graph_entry(self, fqn: str) -> tuple:
-        """What the graph lists for node ``fqn``: its publishers, subscriptions, services and clients."""
-        namespace, name = split_full_name(fqn)
-        node = self._graph_node()
-        try:
-            return tuple(sorted(map(str, call(name, namespace))) for call in (
-                node.get_publisher_names_and_types_by_node, node.get_subscriber_names_and_types_by_node,
-                node.get_service_names_and_types_by_node, node.get_client_names_and_types_by_node))
-        except Exception:  # the node left meanwhile: nothing to settle
-            return ()
+        # woken by each change; the period lets the quiet time itself run out
+        poll_until(settled, max(0.0, timeout - (time.monotonic() - started)), ENTRY_SETTLE_S / 3)
 
     def stop_child(self, name: str) -> int | None:
         """Stop a child process by name (SIGTERM, then SIGKILL); returns its exit code."""
@@ -91,8 +100,9 @@ class ChildProcesses:
     def stop_children(self, names) -> dict[str, int | None]:
         """Stop several child processes together: SIGTERM to all, then wait; exit codes by name."""
         names = list(names)
-        for name in names:
-            self._router.close(name)
+        if self._consoles is not None:
+            for name in names:
+                self._consoles.close(name)
         return processes.stop(names)
 
     def children(self) -> dict[str, processes.ChildProcess]:

@@ -1,55 +1,45 @@
 """Reference solution of chapter 10 (capstone), checked by ``course_helpers/checks/ch10_capstone.py``.
 
-:data:`REFERENCE_DESIGN` lays out the warehouse robot: its nodes, and every topic,
-service and action with its endpoints and QoS. The choices, channel by channel:
+:class:`FleetSafetyMonitor` is the robot's safety monitor, extended to obey the fleet manager's
+e-stop as well:
 
-* camera and LIDAR: BEST_EFFORT, VOLATILE, small depth - a fresh sample replaces a
-  lost one within milliseconds, and retransmitting a stale frame only adds delay;
-* odometry and velocity commands: RELIABLE, VOLATILE - every command matters while it
-  is fresh, but a node that starts later must not act on old ones;
-* the e-stop: RELIABLE + TRANSIENT_LOCAL with depth 1 - every change arrives, and a
-  node that starts after the button was pressed learns the current state at once;
-* picking and placing are services (short, answer yes or no); driving is an action (long,
-  with progress feedback, and it must be cancellable).
+* it subscribes to ``/fleet/estop``, an absolute name: the one topic of the whole fleet, not a
+  topic under the robot's namespace;
+* with the e-stop's QoS, RELIABLE + TRANSIENT_LOCAL: a monitor that starts after the fleet was
+  stopped still receives the fleet's current state;
+* a fleet stop engages the robot's e-stop; the fleet's release releases it only if the fleet was
+  what engaged it (an operator's or the LIDAR's stop stays until an operator releases it);
+* while the fleet stop holds, the operator's ``~/engage`` service refuses to release.
 """
 
 from __future__ import annotations
 
-SENSOR = {"reliability": "best_effort", "durability": "volatile", "depth": 5}
-COMMAND = {"reliability": "reliable", "durability": "volatile", "depth": 10}
-LATCHED = {"reliability": "reliable", "durability": "transient_local", "depth": 1}
+from course_interfaces.msg import EStop
+from std_srvs.srv import SetBool
+
+from course_helpers.chapters.ch10_capstone import SafetyMonitor
+from course_helpers.chapters.ch10_capstone.channels import ESTOP_QOS
 
 
-def reference_design() -> dict:
-    """The reference design of the warehouse robot (a new dict on every call)."""
-    return {
-        "namespace": "/robot1",
-        "nodes": ["camera", "lidar", "base", "safety_monitor", "navigator", "gripper", "mission_runner"],
-        "topics": [
-            {"name": "camera/image_raw", "type": "sensor_msgs/msg/Image",
-             "publishers": ["camera"], "subscribers": [], "qos": SENSOR},
-            {"name": "scan", "type": "sensor_msgs/msg/LaserScan",
-             "publishers": ["lidar"], "subscribers": ["safety_monitor"], "qos": SENSOR},
-            {"name": "odom", "type": "nav_msgs/msg/Odometry",
-             "publishers": ["base"], "subscribers": ["navigator", "gripper", "lidar"], "qos": COMMAND},
-            {"name": "cmd_vel", "type": "geometry_msgs/msg/Twist",
-             "publishers": ["navigator"], "subscribers": ["base"], "qos": COMMAND},
-            {"name": "estop", "type": "course_interfaces/msg/EStop",
-             "publishers": ["safety_monitor"],
-             "subscribers": ["base", "navigator", "gripper", "mission_runner", "camera", "lidar"],
-             "qos": LATCHED},
-        ],
-        "services": [
-            {"name": "pick_item", "type": "course_interfaces/srv/PickItem",
-             "server": "gripper", "clients": ["mission_runner"]},
-            {"name": "place_item", "type": "std_srvs/srv/Trigger",
-             "server": "gripper", "clients": ["mission_runner"]},
-        ],
-        "actions": [
-            {"name": "navigate", "type": "course_interfaces/action/Navigate",
-             "server": "navigator", "clients": ["mission_runner"]},
-        ],
-    }
+class FleetSafetyMonitor(SafetyMonitor):
+    """The robot's safety monitor, which also obeys the fleet manager's e-stop on /fleet/estop."""
 
+    def __init__(self, namespace='/robot1'):
+        super().__init__(namespace)
+        self.fleet_stopped = False  # is the fleet's e-stop engaged right now?
+        self.fleet_subscription = self.create_subscription(
+            EStop, '/fleet/estop', self.on_fleet_estop, ESTOP_QOS)
 
-REFERENCE_DESIGN = reference_design()
+    def on_fleet_estop(self, msg: EStop) -> None:
+        self.fleet_stopped = msg.engaged
+        if msg.engaged and not self.current.engaged:
+            self.publish_estop(True, f'fleet stop: {msg.reason}', 'fleet')
+        elif not msg.engaged and self.current.engaged and self.current.source == 'fleet':
+            self.publish_estop(False, '', 'fleet')
+
+    def on_engage(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        if not request.data and self.fleet_stopped:
+            response.success = False
+            response.message = 'the fleet stop holds: only the fleet manager can release it'
+            return response
+        return super().on_engage(request, response)

@@ -10,4 +10,7 @@
 * :mod:`.isolation` - one student's run: its own environment, temporary folder and ROS domain,
   and the sweep afterwards that proves nothing of it is left.
 * :mod:`.results` - the grade table (CSV) with a reason for every lost point.
+* :mod:`.handin` - submissions made from an assignment: its reference, its starting code, any answers.
+* :mod:`.verdict` - ``grade-all``'s check of a grade table: the reference earns every point, the
+  starting code less on every exercise.
 """

@@ -11,12 +11,13 @@ of nbgrader's Execute. Exit status 0 when nbgrader succeeded.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from grading.isolation import become_subreaper  # noqa: E402
+from grading.isolation import become_subreaper, sweep_descendants  # noqa: E402
 
 
 def grading_config(course_dir: str, timeout: int | None = None, record: str = ""):
@@ -44,6 +45,27 @@ def grading_config(course_dir: str, timeout: int | None = None, record: str = ""
     return config
 
 
+def _sweep_into_record(record: str) -> None:
+    """Kill what the student's kernel left running (this process is their subreaper, so a detached
+    process is its child now) and add what was killed to the run record as ``killed_after_run``.
+
+    Done here, before this process exits: the course's supervisor above it would otherwise end
+    those processes without a word, and the grade's notes would not say that anything was left.
+    """
+    left = sweep_descendants()
+    if not record:
+        return
+    try:
+        with open(record, encoding="utf-8") as handle:
+            data = json.load(handle)
+    except (OSError, ValueError):
+        data = {}
+    data["killed_after_run"] = left
+    with open(record + ".new", "w", encoding="utf-8") as handle:
+        json.dump(data, handle)
+    os.replace(record + ".new", record)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("course_dir")
@@ -60,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     config = grading_config(course_dir, args.timeout, args.record)
     api = NbGraderAPI(config=config)
     result = api.autograde(args.assignment, args.student, force=True, create=True)
+    _sweep_into_record(args.record)
     print(result.get("log", ""))
     if not result["success"]:
         print(result.get("error", ""), file=sys.stderr)

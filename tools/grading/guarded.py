@@ -17,7 +17,8 @@ An error in a test cell makes nbgrader score it zero (these go first among the c
 outputs: nbgrader reads them in order and would take a score printed before them), so each
 of these costs only the exercise it happened in, and the error text is the reason shown in
 the feedback and the grade table. What happened, the kernels' PIDs and the ROS domains they
-held are written as JSON to ``record_path`` for the sweep that follows the run (:mod:`.isolation`).
+held are written as JSON to ``record_path`` for the sweep that follows the run (:mod:`.isolation`),
+with the cell being run and each test cell as it starts (the grader shows them as progress).
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ class GuardedExecute(Execute):
     record_path = Unicode("", help="where to write the run record (JSON); '' for none").tag(config=True)
 
     def preprocess(self, nb, resources=None, km=None):
-        self._record = {"kernels": [], "domains": [], "events": []}
+        self._record = {"kernels": [], "domains": [], "events": [], "tests_started": []}
         self._dead_reason = ""
         self._before: set[tuple[int, float]] = set()
         self._out_bytes, self._flooded = 0, False
@@ -76,6 +77,11 @@ class GuardedExecute(Execute):
         if self._dead_reason:
             cell.outputs = [_error("NotRun", self._dead_reason)]
             return cell, self.resources
+        # the grader's progress lines: the cell being run, and each test cell as it starts
+        self._record["running"] = {"cell": index, "cells": len(self.nb.cells)}
+        if meta.get("grade"):
+            self._record["tests_started"].append({"test": label, **self._record["running"]})
+        self._save()
         if meta.get("solution"):
             self._before = self._descendants()
         self._out_bytes, self._flooded = 0, False

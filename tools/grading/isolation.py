@@ -108,6 +108,18 @@ def leftovers(marker: str) -> list[psutil.Process]:
     return alive
 
 
+def sweep_descendants() -> list[str]:
+    """Kill this process's descendants that are still running; return their descriptions."""
+    alive = []
+    for proc in psutil.Process().children(recursive=True):
+        try:
+            if proc.status() != psutil.STATUS_ZOMBIE:
+                alive.append(proc)
+        except psutil.Error:
+            pass
+    return kill_all(alive)
+
+
 def sweep(marker: str) -> list[str]:
     """Kill what a finished run left running; return their descriptions (empty when nothing was left)."""
     procs = leftovers(marker)

@@ -14,6 +14,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 REASON_CHARS = 300
+# Why a whole run has no grades: every exercise of the student then scores zero with this reason.
+NOT_GRADED = "nbgrader could not grade it"
+PAST_WALL_CLOCK = "grading took longer than the wall clock"
+NO_GRADES = "nbgrader recorded no grades for this submission"
 
 
 @dataclass
@@ -28,6 +32,16 @@ class StudentResult:
     @property
     def total(self) -> float:
         return sum(points for points, _, _ in self.grades.values())
+
+    @property
+    def run_failure(self) -> str:
+        """Why the run did not finish ('' if it did): then every exercise has that reason."""
+        reasons = {reason for _, _, reason in self.grades.values()}
+        if len(reasons) == 1:
+            reason = reasons.pop()
+            if reason.startswith((NOT_GRADED, PAST_WALL_CLOCK, NO_GRADES)):
+                return reason
+        return ""
 
 
 def _text(cell: dict) -> str:
@@ -93,7 +107,7 @@ def collect(course_dir: Path, assignment: str, student: str, grade_ids: dict[str
                 submitted = gb.find_submission_notebook(assignment, assignment, student)
                 scores = {g.name: float(g.score or 0.0) for g in submitted.grades}
             except MissingEntry:
-                failure = "nbgrader recorded no grades for this submission"
+                failure = NO_GRADES
     for grade_id, max_points in grade_ids.items():
         points = scores.get(grade_id, 0.0)
         reason = failure or why.get(grade_id, "")
@@ -123,3 +137,21 @@ def write_csv(path: Path, results: list[StudentResult], grade_ids: dict[str, flo
             row += [f"{r.total:g}", f"{sum(grade_ids.values()):g}", f"{r.seconds:.0f}", " | ".join(r.notes)]
             writer.writerow(row)
     return path
+
+
+def read_csv(path: Path, grade_ids: dict[str, float]) -> list[StudentResult]:
+    """The grade table :func:`write_csv` wrote, back as results; ``grade_ids`` maps each test cell
+    to its points (the table holds the total maximum only). Raises ``ValueError`` if a column is missing."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    found = []
+    for row in rows:
+        missing = [g for g in grade_ids if g not in row or f"{g} reason" not in row]
+        if missing:
+            raise ValueError(f"{path} has no column for {missing}; it has {sorted(row)}")
+        result = StudentResult(row["student"], seconds=float(row["seconds"]),
+                               notes=[n for n in row["notes"].split(" | ") if n])
+        for grade_id, max_points in grade_ids.items():
+            result.grades[grade_id] = (float(row[grade_id]), max_points, row[f"{grade_id} reason"])
+        found.append(result)
+    return found

@@ -3,6 +3,7 @@
 :func:`launch` starts every :class:`NodeLaunch` in a child process of its own through the
 runtime (``rt.spawn``), with its parameter file and values, as ``ros2 launch`` does;
 :class:`LaunchGroup` stops the processes together, like Ctrl+C on ``ros2 launch``.
+:func:`launch_file` writes the Python launch file that does the same in a ROS 2 installation.
 """
 
 from __future__ import annotations
@@ -131,3 +132,42 @@ def _stop_previous(rt, label: str) -> None:
     rt.stop_children(list(previous))
     if old_nodes:
         poll_until(lambda: not old_nodes & set(rt.graph_nodes()), OLD_NODES_GONE_S)
+
+
+def launch_file(nodes: list[NodeLaunch], package: str = "course_demo") -> str:
+    """The Python launch file (``launch_ros.actions.Node`` entries) equivalent to ``nodes``.
+
+    Args:
+        nodes: the :class:`NodeLaunch` entries, as :func:`launch` takes them (may be empty).
+        package: the ROS package that installs the ``talker`` and ``listener`` executables.
+
+    Returns:
+        The text of a file for ``ros2 launch <package> <file>.launch.py`` in a ROS 2 installation
+        (it cannot run here: the ``launch`` packages are not on PyPI). Each entry's kind becomes
+        the executable; its parameter file comes before its values, which override the file's.
+    """
+    if not isinstance(nodes, list) or not all(isinstance(n, NodeLaunch) for n in nodes):
+        raise CourseError("launch_file() takes a list of NodeLaunch(kind, name, namespace, parameters)")
+    lines = [
+        "from launch import LaunchDescription",
+        "from launch_ros.actions import Node",
+        "",
+        "",
+        "def generate_launch_description():",
+        "    return LaunchDescription([",
+    ]
+    for entry in nodes:
+        node_class(entry.kind)
+        parameters = ([entry.params_file] if entry.params_file else []) + (
+            [dict(entry.parameters)] if entry.parameters else [])
+        lines += ["        Node(",
+                  f"            package={package!r},",
+                  f"            executable={entry.kind!r},",
+                  f"            name={entry.name!r},"]
+        if entry.namespace:
+            lines.append(f"            namespace={check_namespace(entry.namespace)!r},")
+        if parameters:
+            lines.append(f"            parameters={parameters!r},")
+        lines.append("        ),")
+    lines.append("    ])")
+    return "\n".join(lines) + "\n"

@@ -1,11 +1,11 @@
 """Chapter 07, DDS and discovery, measured on the live system.
 
-* :mod:`.models` - four communication models routed message by message (a count in pure Python,
+* :mod:`.communication_models` - four communication models routed message by message (a count in pure Python,
   not a measurement: no DDS runs there);
 * :mod:`.listener` - a child-process listener that reports what it hears (domains, discovery server);
   the spare domain and the domain probe come from :mod:`course_helpers.core.domains`;
 * :mod:`.discovery` - how long a new process takes to find a node (the probe and the anchor);
-* :mod:`.tuning` - discovery with Fast DDS's default announcement period against the course's, and
+* :mod:`.discovery_settings` - discovery with Fast DDS's default announcement period against the course's, and
   what announcing costs;
 * :mod:`.server` - eProsima's discovery server, started and stopped from the notebook;
 * :mod:`.server_failure` - chapter 01's failure experiment with a discovery server where ROS 1 had its master
@@ -21,6 +21,14 @@ The notebook uses ``from course_helpers.chapters import ch07_dds as dds`` and ``
 
 # ruff: noqa: F401  (every import below is a re-export for the notebook)
 
+from course_helpers.chapters.ch07_dds.communication_models import (
+    MODELS,
+    ModelResult,
+    center_failure_table,
+    compare_models,
+    plot_models,
+    simulate_model,
+)
 from course_helpers.chapters.ch07_dds.discovery import (
     DiscoveryAnchor,
     DiscoveryProbe,
@@ -29,17 +37,19 @@ from course_helpers.chapters.ch07_dds.discovery import (
     measure_discovery,
     summarize_discovery,
 )
+from course_helpers.chapters.ch07_dds.discovery_settings import (
+    SETTINGS,
+    AnnouncementTraffic,
+    DiscoveryComparison,
+    compare_discovery,
+    discovery_port,
+    listen_to_announcements,
+    measure_announcements,
+    plot_discovery,
+)
 from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
 from course_helpers.chapters.ch07_dds.machines import LinkResult, link_table, two_machines
 from course_helpers.chapters.ch07_dds.middleware import installed_rmw_implementations, middleware_report
-from course_helpers.chapters.ch07_dds.models import (
-    MODELS,
-    ModelResult,
-    center_failure_table,
-    compare_models,
-    plot_models,
-    simulate_model,
-)
 from course_helpers.chapters.ch07_dds.names import (
     DdsEntity,
     dds_entities,
@@ -71,16 +81,6 @@ from course_helpers.chapters.ch07_dds.transports import (
     measure_transports,
     plot_transports,
     run_ping,
-)
-from course_helpers.chapters.ch07_dds.tuning import (
-    SETTINGS,
-    AnnouncementTraffic,
-    DiscoveryComparison,
-    compare_discovery,
-    discovery_port,
-    listen_to_announcements,
-    measure_announcements,
-    plot_discovery,
 )
 from course_helpers.core.domains import nodes_in_domain, reserve_spare_domain
 from course_helpers.viz.failure_table import FailureResult, side_by_side

@@ -1,7 +1,7 @@
 """How long a new process takes to find a node, step by step (simple discovery).
 
 A :class:`DiscoveryAnchor` is the node already running: in the kernel (:func:`measure_discovery`)
-or in a child process (:mod:`.tuning`). Each fresh child process runs :func:`discovery_probe`,
+or in a child process (:mod:`.discovery_settings`). Each fresh child process runs :func:`discovery_probe`,
 which times its own :class:`DiscoveryProbe` node against the anchor and reports the timings over
 the process channel.
 """
@@ -16,8 +16,8 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch07_dds.results import run_child_for_result
 from course_helpers.core.channel import report
+from course_helpers.core.child_results import run_child_for_result
 from course_helpers.core.errors import CourseError
 from course_helpers.core.runtime import get_runtime
 

@@ -13,8 +13,8 @@ import os
 from rclpy.context import Context
 from rclpy.node import Node
 
-from course_helpers.chapters.ch07_dds.results import run_child_for_result
 from course_helpers.core.channel import report
+from course_helpers.core.child_results import run_child_for_result
 from course_helpers.core.errors import CourseError
 
 SECURITY_VARIABLES = ("ROS_SECURITY_ENABLE", "ROS_SECURITY_STRATEGY", "ROS_SECURITY_KEYSTORE",

@@ -29,15 +29,11 @@ def free_udp_port() -> int:
         return probe.getsockname()[1]
 
 
-def udp_port_bound(port: int, table: str = "/proc/net/udp") -> bool:
-    """True if some socket on this machine is bound to UDP ``port`` (read from ``table``, not probed)."""
-    try:
-        with open(table, encoding="ascii") as handle:
-            rows = handle.read().splitlines()[1:]
-    except OSError:
-        return False
-    wanted = f"{port:04X}"
-    return any(row.split()[1].rpartition(":")[2] == wanted for row in rows if len(row.split()) > 1)
+def udp_port_bound(port: int) -> bool:
+    """True if some socket on this machine is bound to UDP ``port`` (asked with psutil, not probed)."""
+    import psutil
+
+    return any(c.laddr and c.laddr.port == port for c in psutil.net_connections(kind="udp"))
 
 
 def _server_binary() -> str:
@@ -61,7 +57,7 @@ class DiscoveryServer:
 
     @property
     def pid(self) -> int:
-        """Its process ID."""
+        """The server program's process ID (its parent is the course's supervisor, ``core/supervisor.py``)."""
         return self.child.pid
 
     @property

@@ -15,8 +15,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, QoSReliabilityPolicy
 from std_msgs.msg import UInt8MultiArray
 
-from course_helpers.chapters.ch07_dds.results import run_child_for_result
 from course_helpers.core.channel import report
+from course_helpers.core.child_results import run_child_for_result
 from course_helpers.core.dds_config import udp_loopback_env
 from course_helpers.core.errors import CourseError
 from course_helpers.core.runtime import get_runtime

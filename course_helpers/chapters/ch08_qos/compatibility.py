@@ -15,7 +15,7 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.qos import QoSCompatibility, QoSProfile, qos_check_compatible, qos_policy_name_from_kind
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch08_qos.common import remove_nodes
+from course_helpers.chapters.ch08_qos.cleanup import remove_nodes
 from course_helpers.core.qos_dict import qos_to_dict
 from course_helpers.core.waiting import poll_until
 

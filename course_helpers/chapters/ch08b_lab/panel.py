@@ -37,6 +37,7 @@ from course_helpers.chapters.ch08b_lab.link import link_unavailable_reason
 from course_helpers.chapters.ch08b_lab.plots import ResultsFigure, draw_still
 from course_helpers.chapters.ch08b_lab.results import ExperimentResult
 from course_helpers.chapters.ch08b_lab.run import run_experiment
+from course_helpers.chapters.ch08b_lab.table import results_table_html
 from course_helpers.core.errors import CourseError
 from course_helpers.core.units import format_bytes
 
@@ -44,11 +45,6 @@ RATES_HZ = (1, 2, 5, 10, 20, 50, 100, 200, 400, 500, 1000, 2000, 5000)
 PAYLOADS = (16, 256, 1024, 4096, 16384, 65536, 262144, 2**20, 2 * 2**20, 4 * 2**20)
 MAX_FRAME_HZ = 8.0  # the live plot redraws at most this often
 RECORD_TITLE = "QoS lab"
-_ROW_COLUMNS = (("#", None), ("run", "run"), ("sent", "published"), ("delivered", "delivered"),
-                ("lost (gaps)", "lost_seq"), ("lost (events)", "lost_events"), ("in flight", "in_flight"),
-                ("publish errors", "publish_errors"), ("p50 ms", "p50_ms"), ("p99 ms", "p99_ms"),
-                ("loopback MB", "loopback_mb"), ("note", "note"))
-
 _active: QoSLab | None = None
 
 
@@ -67,6 +63,7 @@ class QoSLab:
     def __init__(self):
         self.results: list[ExperimentResult] = []
         self.config_b: ExperimentConfig | None = None
+        self.pair: list[ExperimentConfig] | None = None  # a two-run preset, while the panel shows it
         self.frame_hz: float | None = None  # live-plot refresh rate of the last run
         self.frame_seconds = 0.0  # how long the last frame took to draw
         self.live_frames = 0  # live frames shown while the last start()'s runs were in progress
@@ -147,6 +144,7 @@ class QoSLab:
 
         self.b_label = w.HTML()
         self.status = w.HTML()
+        self.machine_note = w.HTML()  # how busy the machine was during the last runs
         self.image = w.Image(format="png", layout=w.Layout(width="100%", max_width="980px"))
         self.table = w.HTML()
         for control in self._config_controls():
@@ -166,7 +164,7 @@ class QoSLab:
             w.HBox([qos_box, load_box], layout=w.Layout(grid_gap="24px")),
             w.HBox([self.run_button, self.stop_button, self.compare_button, self.keep_b_button,
                     self.clear_button]),
-            self.b_label, self.status, self.image, self.table,
+            self.b_label, self.status, self.machine_note, self.image, self.table,
         ])
         self.widget.add_class("qos-lab")
 
@@ -201,8 +199,12 @@ class QoSLab:
             text = "no runs yet: each run adds a row to the table"
         else:
             text = "\n".join(f"{number}. {result.summary()}" for number, result in enumerate(self.results, 1))
+        machine = self._machine_line(self._last_runs)
+        if machine:
+            text += "\n" + machine
         body = (f"<p><b>QoS lab</b>: {len(self.results)} run(s) in this session. The plot below shows "
-                "the last Run or Compare.</p>" + results_table_html(self.results))
+                "the last Run or Compare.</p>" + (f"<p>{html.escape(machine)}</p>" if machine else "")
+                + results_table_html(self.results))
         return text, body
 
     # ------------------------------------------------------------------ configuration
@@ -248,6 +250,11 @@ class QoSLab:
             self.keep_b_button.disabled = True
             self._set_status(f"These settings cannot run: {error}", "warning")
             return None
+        if self.pair is not None and not _same_settings(config, self.pair[-1]):
+            self.pair = None  # the panel no longer shows the preset: Run runs what it shows
+        self.run_button.description = "Run both" if self.pair else "Run"
+        self.run_button.tooltip = ("run the preset's two configurations, one after the other" if self.pair
+                                   else "run the panel's settings")
         self.run_button.disabled = busy
         self.compare_button.disabled = busy or self.config_b is None
         self.keep_b_button.disabled = False
@@ -271,7 +278,7 @@ class QoSLab:
     def _on_run(self, _button=None) -> None:
         config = self._validate()
         if config is not None:
-            self.start([config])
+            self.start(list(self.pair) if self.pair else [config])  # "Run both" after a two-run preset
 
     def _on_compare(self, _button=None) -> None:
         config = self._validate()
@@ -306,12 +313,19 @@ class QoSLab:
             self._set_status("Stop the running experiment before loading a preset.", "warning")
             return
         configs = preset(name)
+        self.pair = None
         self.config_b = configs[0] if len(configs) == 2 else None
         self._refresh_b_label()
         self.set_config(configs[-1])
+        self.pair = configs if len(configs) == 2 else None
         self._validate()
         what = html.escape(PRESETS[name]["what"])
-        action = "Press <b>Compare</b> to run B, then the panel." if self.config_b else "Press <b>Run</b>."
+        if self.pair:
+            first, second = (html.escape(c.describe()) for c in self.pair)
+            action = (f"Press <b>Run both</b> to run <i>{first}</i>, then <i>{second}</i> (shown in the "
+                      "panel), overlaid. Change a setting and <b>Run</b> runs the panel alone.")
+        else:
+            action = "Press <b>Run</b>."
         self._set_status(f"Preset <b>{html.escape(name)}</b>: {what} {action}", "info", escape=False)
 
     # ------------------------------------------------------------------ running
@@ -377,8 +391,17 @@ class QoSLab:
             self.frame_hz = _frame_rate(frames)
             self.live_frames = sum(len(times) for times in frames)
             lines = "<br>".join(html.escape(r.summary()) for r in finished)
-            word = "Stopped" if stop.is_set() else "Done"
-            self._set_status(f"{word}. {lines}", "info", escape=False)
+            unfinished = [str(n) for n, r in enumerate(finished, 1) if r.in_flight]
+            if stop.is_set():
+                headline = "Stopped."
+            elif unfinished:
+                which = f"run {unfinished[0]}" if len(unfinished) == 1 else "runs " + " and ".join(unfinished)
+                headline = (f"Done, but {which} did NOT FINISH: samples were still in flight, not lost, so "
+                            "a delivered count there is no result to compare. Run it again.")
+            else:
+                headline = "Done."
+            self._set_status(f"{headline} {lines}", "warning" if unfinished else "info", escape=False)
+            self._show_machine(finished)
             self.update_record()
         except CourseError as error:
             self._set_status(str(error), "warning")
@@ -417,38 +440,31 @@ class QoSLab:
         body = html.escape(text) if escape else text
         self.status.value = f'<div class="qos-lab-status" style="color:{colour}">{body}</div>'
 
+    def _show_machine(self, runs: list[ExperimentResult]) -> None:
+        """Say beside the results how busy the machine was during ``runs`` (nothing when it was quiet)."""
+        line = self._machine_line(runs)
+        busy = any(r.machine is not None and r.machine.busy for r in runs)
+        colour = "#8a5a00" if busy else "#555555"
+        note = f'<div class="qos-lab-machine" style="color:{colour}">{html.escape(line)}</div>'
+        self.machine_note.value = note if line else ""
+
+    @staticmethod
+    def _machine_line(runs: list[ExperimentResult]) -> str:
+        """The busiest of ``runs``' machine loads in one line ('' when it was quiet and alone)."""
+        loads = [r.machine for r in runs if r.machine is not None]
+        if not loads:
+            return ""
+        load = max(loads, key=lambda m: (m.busy, m.others_cores))
+        if not load.busy and not (load.kernels or load.children):
+            return ""
+        return load.describe()
+
     def _refresh_b_label(self) -> None:
         text = html.escape(self.config_b.describe()) if self.config_b else "none yet"
         self.b_label.value = f"<small>Configuration B (for Compare): {text}</small>"
 
     def _refresh_table(self) -> None:
         self.table.value = results_table_html(self.results)
-
-
-_TH = ('style="padding:2px 6px;border-bottom:1px solid #999;text-align:{align};vertical-align:bottom;'
-       'white-space:nowrap"')
-_TD = 'style="padding:2px 6px;border-bottom:1px solid #ddd;text-align:{align}"'
-
-
-def results_table_html(results: list[ExperimentResult]) -> str:
-    """The results table as HTML: one row per run, oldest first."""
-    def align(key):
-        return "left" if key in ("run", "note") else "right"
-
-    head = "".join(f"<th {_TH.format(align=align(key))}>{html.escape(name)}</th>"
-                   for name, key in _ROW_COLUMNS)
-    rows = []
-    for number, result in enumerate(results, 1):
-        row = result.as_row()
-        row["note"] = _note(result)
-        cells = [(str(number), None)] + [(_cell(row.get(key)), key) for _name, key in _ROW_COLUMNS[1:]]
-        rows.append("<tr>" + "".join(f"<td {_TD.format(align=align(key))}>{html.escape(text)}</td>"
-                                     for text, key in cells) + "</tr>")
-    if not rows:
-        rows.append(f'<tr><td colspan="{len(_ROW_COLUMNS)}" style="padding:4px 6px"><i>no runs yet: each '
-                    "run adds a row here</i></td></tr>")
-    return ('<table class="qos-lab-results" style="font-size:12px;border-collapse:collapse;margin-top:4px">'
-            f"<thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>")
 
 
 def _frame_rate(frames: list[list[float]]) -> float | None:
@@ -458,18 +474,9 @@ def _frame_rate(frames: list[list[float]]) -> float | None:
     return count / span if span > 0 else None
 
 
-def _cell(value) -> str:
-    return "" if value is None else str(value)
-
-
-def _note(result: ExperimentResult) -> str:
-    if result.stopped:
-        return "stopped"
-    if result.config.late_joiner:
-        return f"late joiner got {result.delivered} old samples"
-    if result.delivered == result.published and result.lost_nothing and not result.in_flight:
-        return "nothing lost"
-    return ""
+def _same_settings(a: ExperimentConfig, b: ExperimentConfig) -> bool:
+    """True when two configurations differ at most in their labels."""
+    return a.with_changes(label="") == b.with_changes(label="")
 
 
 def _all_widgets(widget):

@@ -11,7 +11,8 @@ Each run has one colour in all three panels:
    ``publish()`` errors);
 2. the totals: sent, delivered, the two loss counts, what was still in flight when
    a run was cut short, and the publish errors; "nothing lost" is written for a
-   finished run whose every sample arrived;
+   finished run whose every sample arrived, "NOT FINISHED" for a run that ended with
+   samples in flight (its delivered count is not its outcome);
 3. latency percentiles (p50, p90, p99) on a log scale.
 
 A run is an ``ExperimentResult`` or a ``(label, snapshots)`` pair.
@@ -198,9 +199,12 @@ class ResultsFigure:
             if snap.done:
                 self._dynamic += self.ax_latency.bar_label(
                     bars, labels=[_fmt(b.get_height()) for b in bars], fontsize=6.5, padding=1)
-        for line, index in enumerate(i for i, snap in totals if _lost_nothing(snap)):
+        notes = [(i, "nothing lost") for i, snap in totals if _lost_nothing(snap)]
+        notes += [(i, f"NOT FINISHED: {snap.in_flight} in flight, not lost") for i, snap in totals
+                  if snap.done and snap.in_flight]  # its delivered bar is no result to compare
+        for line, (index, note) in enumerate(notes):
             self._dynamic.append(self.ax_totals.text(
-                0.98, 0.95 - 0.09 * line, "nothing lost", ha="right", va="top", fontsize=8.5,
+                0.98, 0.95 - 0.09 * line, note, ha="right", va="top", fontsize=8.5,
                 fontweight="bold", color=_colour(index), transform=self.ax_totals.transAxes))
         if totals and not latency:
             self._dynamic.append(self.ax_latency.text(

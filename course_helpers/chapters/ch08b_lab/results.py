@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
+from course_helpers.chapters.ch08b_lab.machine_load import MachineLoad
 from course_helpers.core.units import format_bytes
 
 
@@ -51,6 +52,13 @@ class ExperimentResult:
     first_error: str = ""
     first_seq: int | None = None  # late joiner: the oldest sample's sequence number it got
     timeline: list[Snapshot] = field(default_factory=list, repr=False)
+    end_reason: str = ""  # with samples in flight: why the run ended before they arrived
+    machine: MachineLoad | None = None  # what else used the machine during the run
+
+    @property
+    def finished(self) -> bool:
+        """True when the run was neither stopped nor ended with samples still in flight."""
+        return not self.stopped and not self.in_flight
 
     @property
     def label(self) -> str:
@@ -82,6 +90,7 @@ class ExperimentResult:
             "in_flight": self.in_flight, "publish_errors": self.publish_errors,
             "p50_ms": _round(lat.get("p50")), "p99_ms": _round(lat.get("p99")),
             "loopback_mb": round(self.loopback_bytes / 1e6, 1), "stopped": self.stopped,
+            "finished": self.finished, "busy": bool(self.machine and self.machine.busy),
         }
 
     def summary(self) -> str:
@@ -89,17 +98,19 @@ class ExperimentResult:
         if self.config.late_joiner:
             return (f"{self.label}: the late joiner got {self.delivered} of the {self.published} "
                     "samples sent before it joined")
-        text = f"{self.label}: delivered {self.delivered} of {self.published} sent"
+        text = f"{self.label}: "
+        if self.in_flight:  # the headline: these numbers are not the run's outcome
+            text += (f"NOT FINISHED, {self.in_flight} of {self.published} samples still in flight, not lost "
+                     f"({self.end_reason or 'the run ended before they arrived'}); so far ")
+        text += f"delivered {self.delivered} of {self.published} sent"
         if self.lost_nothing and not self.in_flight and self.delivered == self.published:
             text += ", nothing lost"
         else:
             text += (f", lost {self.lost_by_sequence} by sequence gaps and {self.lost_events} by "
                      "message_lost events")
-        if self.in_flight:
-            text += f", {self.in_flight} still in flight when the run ended"
         if self.publish_errors:
             text += f", {self.publish_errors} publish() errors"
-        return text + (" (stopped)" if self.stopped else "")
+        return text + (" (stopped)" if self.stopped and not self.in_flight else "")
 
     def to_dict(self) -> dict:
         """Every field as plain values (the config as a dict, the timeline as a list of dicts)."""

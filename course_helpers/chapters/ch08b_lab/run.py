@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
 from course_helpers.chapters.ch08b_lab.link import SUBSCRIBER_LABEL, RemoteSubscriber, link_env, lossy_link
+from course_helpers.chapters.ch08b_lab.machine_load import LoadMeter
 from course_helpers.chapters.ch08b_lab.publisher import CHILD_LABEL, LabPublisher
 from course_helpers.chapters.ch08b_lab.results import (
     ExperimentResult,
@@ -39,12 +40,22 @@ from course_helpers.core.waiting import poll_until
 
 MATCH_TIMEOUT_S = 15.0  # child start (Python + rclpy import) plus discovery
 _IDLE_END_S = 0.5  # after the publisher is done, end when nothing arrived for this long
+# Reliable, once every sample is acknowledged: the rest is in this process's reader queue (or was
+# dropped from a shallow writer history); a busy executor may take a moment to hand it over.
+_ACKED_IDLE_END_S = 2.0
 _RELIABLE_IDLE_END_S = 3.5  # a late joiner that got nothing yet: one Fast DDS heartbeat period (3 s) and more
 _LATE_JOIN_LISTEN_S = 1.0  # a matched late joiner listens this long after its last sample
-_DRAIN_LIMIT_S = 2.0  # after the publisher is done, wait at most this long (x3 for reliable)
-# Reliable on the lossy link: a repair waits for a heartbeat, and heartbeats and acknowledgements are
-# lost too; on a busy machine the last repairs can take seconds.
-_LINK_REPAIR_LIMIT_S = 15.0
+_DRAIN_LIMIT_S = 2.0  # best effort: after the publisher is done, wait at most this long for the rest
+# Reliable: a run ends when the writer says every sample is acknowledged. A repair waits for a
+# heartbeat (every 3 s by default), and on a busy machine a burst can need many rounds of them (up
+# to a minute was measured beside a CPU hog and another kernel's nodes). The lab waits as long as
+# repaired samples keep arriving, at most _RELIABLE_LIMIT_S after the last sample was sent, and
+# gives up when none arrived for _RELIABLE_STALL_S (several heartbeat periods). Stop ends it sooner.
+_RELIABLE_LIMIT_S = 90.0
+_RELIABLE_STALL_S = 20.0
+# A subscriber that works processing_ms on each sample needs at least that long per queued sample:
+# when the queue could not drain within this many seconds, the run ends with the rest in flight.
+_BACKLOG_LIMIT_S = 6.0
 _START_POLL_S = 0.02  # while the publisher starts: how often to look for its first report
 
 _run_lock = threading.Lock()
@@ -94,6 +105,7 @@ class _RunState:
     matched_at: float | None = None  # late joiner: when its subscription matched the writer
     stopped: bool = False
     cut_short: bool = False
+    end_reason: str = ""  # why the run ended with samples still to come ('' when it did not)
     timeline: list = field(default_factory=list)
 
     def add_subscriber(self, rt, joins_before_first_sample: bool) -> None:
@@ -110,6 +122,7 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
     # A fresh topic per run: nothing is left from older runs.
     run = _RunState(config, topic=f"/qos_lab/run_{os.getpid()}_{_run_counter}")
     wall_start = time.monotonic()
+    meter = LoadMeter()
     link = lossy_link(config.loss_percent, config.link_mbit) if config.transport == "lossy_link" else None
     counter_pid = link.pid if link is not None else "self"  # whose loopback interface carries the samples
     lo_start = loopback_bytes(counter_pid)
@@ -142,7 +155,7 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
             run.send_start = child.channel.stamped("progress")[0][0]  # the child's clock is ours
             _follow(rt, run, child, progress, stop_event, period_s)
         else:
-            run.stopped = True
+            run.stopped, run.end_reason = True, "stopped before the samples flowed"
     finally:
         if isinstance(run.sub, RemoteSubscriber):
             run.sub.child.request_stop()  # both ends of the link stop together
@@ -155,7 +168,8 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
             run.sub.finish()
         elif run.sub is not None:
             rt.remove(run.sub)
-    return _result(config, run, time.monotonic() - wall_start, loopback_bytes(counter_pid) - lo_start)
+    return _result(config, run, time.monotonic() - wall_start, loopback_bytes(counter_pid) - lo_start,
+                   meter.finish())
 
 
 def _wait_until_sending(child, stop_event: threading.Event, config: ExperimentConfig, sub) -> bool:
@@ -204,10 +218,11 @@ def _follow(rt, run: _RunState, child, progress, stop_event: threading.Event, pe
             continue
         if _finished(run, now, config):
             return
-        if not config.late_joiner and _drain_hopeless(run, now, config):
-            run.cut_short = True  # samples were still coming: report them as in flight
+        reason = "" if config.late_joiner else _give_up(run, now, config)
+        if reason:
+            run.cut_short, run.end_reason = True, reason  # samples were still coming: in flight, not lost
             return
-    run.stopped = True
+    run.stopped, run.end_reason = True, "stopped before it finished"
 
 
 def _send_deadline_s(config) -> float:
@@ -235,28 +250,31 @@ def _finished(run, now, config) -> bool:
         return True  # the last sample that was sent has arrived
     # The writer says the reader has acknowledged every sample (at once for best-effort): what has
     # not been delivered a moment after that never will be. Until then a reliable writer still
-    # repairs what the reader missed, however slowly on a busy machine; _drain_hopeless ends that
-    # wait and the missing samples count as in flight, not lost.
+    # repairs what the reader missed, however slowly on a busy machine; only _give_up ends that
+    # wait early, and then the missing samples count as in flight, not lost.
     if run.acked_at is None:
         return False
-    return now - max(run.acked_at, sub.last_arrival) > _IDLE_END_S
+    idle = _ACKED_IDLE_END_S if config.reliability == "reliable" else _IDLE_END_S
+    return now - max(run.acked_at, sub.last_arrival) > idle
 
 
-def _drain_hopeless(run, now, config) -> bool:
-    """After the publisher is done: stop waiting for queued samples after a while."""
+def _give_up(run, now, config) -> str:
+    """After the publisher is done: why to stop waiting for the samples still to come ('' to wait on)."""
     waited = now - run.summary_at
-    limit = _DRAIN_LIMIT_S * (3 if config.reliability == "reliable" else 1)
-    if config.reliability == "reliable" and config.transport == "lossy_link":
-        limit = _LINK_REPAIR_LIMIT_S
+    limit = _RELIABLE_LIMIT_S if config.reliability == "reliable" else _DRAIN_LIMIT_S
     if waited > limit:
-        return True
-    if waited < 0.5 or len(run.timeline) < 2:
-        return False
-    # A subscriber that is busy but slow (KEEP_ALL back-pressure): would the rest take far too long?
-    recent = [s for s in run.timeline if s.t >= run.timeline[-1].t - 0.5]
-    rate = (recent[-1].delivered - recent[0].delivered) / max(recent[-1].t - recent[0].t, 1e-3)
-    remaining = run.summary["published"] - (run.sub.last_seq or 0)
-    return rate > 0 and remaining > rate * (limit - waited) * 2
+        what = "acknowledgements and repairs" if config.reliability == "reliable" else "queued samples"
+        return f"the lab stopped waiting for {what} {limit:g} s after the last sample was sent"
+    quiet_s = now - max(run.summary_at, run.sub.last_arrival)
+    if config.reliability == "reliable" and quiet_s > _RELIABLE_STALL_S:
+        return f"no sample arrived for {_RELIABLE_STALL_S:g} s: the repairs had stopped coming"
+    if config.processing_ms:
+        remaining = run.summary["published"] - (run.sub.last_seq or 0)
+        needed_s = remaining * config.processing_ms / 1000  # the subscriber's own time, at least
+        if needed_s > _BACKLOG_LIMIT_S - waited:
+            return (f"queued for a subscriber that needs {config.processing_ms:g} ms per sample: the rest "
+                    f"would take at least {needed_s:.0f} s more")
+    return ""
 
 
 def _snapshot(sub, progress_line, summary, t) -> Snapshot:
@@ -275,7 +293,7 @@ def _snapshot(sub, progress_line, summary, t) -> Snapshot:
                     latency_p50_ms=lat["p50"], latency_p90_ms=lat["p90"], latency_p99_ms=lat["p99"])
 
 
-def _result(config, run, wall_s, lo_bytes) -> ExperimentResult:
+def _result(config, run, wall_s, lo_bytes, machine) -> ExperimentResult:
     report = run.summary or run.progress_line or {}
     sub = run.sub
     published = int(report.get("published", 0))
@@ -302,5 +320,6 @@ def _result(config, run, wall_s, lo_bytes) -> ExperimentResult:
         lost_by_sequence=gaps, lost_events=events, in_flight=in_flight, latency_ms=lat,
         send_time_s=float(report.get("elapsed_s", 0.0)), wall_time_s=wall_s, loopback_bytes=lo_bytes,
         stopped=run.stopped, first_error=report.get("first_error", ""),
-        first_seq=sub.first_seq if sub is not None else None, timeline=[*run.timeline, final])
+        first_seq=sub.first_seq if sub is not None else None, timeline=[*run.timeline, final],
+        end_reason=run.end_reason if in_flight else "", machine=machine)
 

@@ -1,8 +1,9 @@
 """A live indicator for a build that takes a while: ``ws.build(progress=build_progress())``.
 
-In a notebook the indicator is a bar with the elapsed time and the latest line, and under it a
-static record (``notebook.records``): when the build ends, the record lists the build's steps
-with the time each took and the result, so a saved copy of the notebook shows what happened.
+In a notebook the indicator is the course's progress bar
+(:class:`~course_helpers.notebook.progress.ProgressWithRecord`) with the elapsed time and the latest
+line, and under it a static record: when the build ends, the record lists the build's steps with
+the time each took and the result, so a saved copy of the notebook shows what happened.
 """
 
 from __future__ import annotations
@@ -94,24 +95,20 @@ def build_progress(title: str = "colcon build") -> Callable[[str], None] | None:
     """
     if not in_jupyter_kernel():
         return None
-    import ipywidgets as widgets
+    from course_helpers.notebook.progress import ProgressWithRecord
 
-    from course_helpers.notebook.records import show_with_record
-
-    bar = widgets.FloatProgress(value=0, min=0, max=1, bar_style="info",
-                                layout=widgets.Layout(width="260px"))
-    label = widgets.Label(value=f"{title}: starting")
+    bar = ProgressWithRecord(title, label=f"{title}: starting", width="260px", style="info")
     steps = BuildSteps(title)
-    record = show_with_record(widgets.HBox([bar, label]), title, steps.text(), steps.html())
+    bar.show(steps.text(), steps.html())
 
     def update(line: str) -> None:
         steps.add(line)
         elapsed = time.monotonic() - steps.started
-        bar.value = min(0.95, elapsed / (elapsed + 5.0))  # creeps towards the end, never claims done
+        label = f"{title} ({elapsed:.0f} s): {short_line(line)}"
         if line in _END_LINES:
-            bar.value = 1.0
-            bar.bar_style = "success" if line == "done" else "danger"
-            record.update(steps.text(), steps.html())
-        label.value = f"{title} ({elapsed:.0f} s): {short_line(line)}"
+            bar.end("success" if line == "done" else "danger", label, full=True)
+            bar.update_record(steps.text(), steps.html())
+        else:
+            bar.move(min(0.95, elapsed / (elapsed + 5.0)), label)  # creeps towards the end, never claims done
 
     return update

@@ -1,17 +1,19 @@
 """Measuring the running robot: what reaches a topic's reader, and each endpoint's QoS.
 
 :func:`measure_delivery` counts the stamped messages on a topic and finds the frames that
-never made it from gaps between the stamps; :func:`endpoint_qos` and :func:`qos_table` read
-the reliability and durability of every endpoint from the live graph.
+never made it from gaps between the stamps (and, in the same window, collects the times a
+node reports for its frames); :func:`endpoint_qos` and :func:`qos_table` read the reliability
+and durability of every endpoint from the live graph.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from geometry_msgs.msg import PointStamped
 from rclpy.qos import QoSProfile
+from std_msgs.msg import Float64
 
 from course_helpers.core.errors import WaitTimeout
 from course_helpers.core.names import full_name, is_hidden
@@ -28,6 +30,20 @@ class Delivery:
     received: int
     missed: int
     mean_age_ms: float
+    callback_ms: list[float] = field(default_factory=list)  # a node's own time per frame [ms], if asked
+    span_s: float = float("nan")  # from the first to the last stamp received [s]
+
+    @property
+    def mean_callback_ms(self) -> float:
+        """The mean of :attr:`callback_ms` [ms] (nan when none were collected)."""
+        return sum(self.callback_ms) / len(self.callback_ms) if self.callback_ms else float("nan")
+
+    @property
+    def frames_per_message(self) -> float:
+        """Source frames per message received, from the stamps' span (1.0: every frame; nan: < 2).
+
+        Unlike the rate, it does not depend on where the window's edges fall between two messages."""
+        return self.span_s * self.expected_hz / (self.received - 1) if self.received > 1 else float("nan")
 
     @property
     def delivered_hz(self) -> float:
@@ -47,11 +63,13 @@ class Delivery:
 
 def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0,
                      expected_hz: float = 30.0, qos: QoSProfile | int = 50,
-                     first_timeout: float = 8.0) -> Delivery:
+                     first_timeout: float = 8.0, timing_topic: str | None = None) -> Delivery:
     """Count messages on ``topic`` for ``seconds``; find missed frames from gaps in header stamps.
 
     Args: ``rt`` the runtime, ``topic`` a topic of stamped messages (``msg_type``),
-    ``expected_hz`` the rate of the source [Hz], ``qos`` the reader's profile or depth.
+    ``expected_hz`` the rate of the source [Hz], ``qos`` the reader's profile or depth,
+    ``timing_topic`` a std_msgs/Float64 topic on which the node publishes how long each frame
+    took [ms] (perception's ``~/processing_time_ms``), read in the same window.
     Returns: a :class:`Delivery`; its missed frames come from :func:`count_missed`, its age
     is receive time minus the camera's stamp (same machine, same clock). The window starts
     0.3 s after the first message; if nothing arrives within ``first_timeout`` s, the result
@@ -61,6 +79,7 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
     """
     stamps: list[float] = []
     ages: list[float] = []
+    timings: list[float] = []
 
     def on_message(msg) -> None:
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
@@ -68,6 +87,8 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
         ages.append(time.time() - stamp)
 
     sub = rt.graph.create_subscription(msg_type, topic, on_message, qos)
+    timing = (rt.graph.create_subscription(Float64, timing_topic, lambda m: timings.append(m.data), 50)
+              if timing_topic else None)
     try:
         try:
             rt.wait_until(lambda: len(stamps) > 0, first_timeout, f"a first message on {topic}")
@@ -77,15 +98,20 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
         time.sleep(0.3)  # let the pipeline settle
         stamps.clear()
         ages.clear()
+        timings.clear()
         started = time.monotonic()
         time.sleep(seconds)
         elapsed = time.monotonic() - started
         got = sorted(stamps)
         age = list(ages)
+        took = list(timings)
     finally:
         rt.call_in_executor(rt.graph.destroy_subscription, sub)
+        if timing is not None:
+            rt.call_in_executor(rt.graph.destroy_subscription, timing)
     return Delivery(topic, expected_hz, elapsed, len(got), count_missed(got, expected_hz, elapsed),
-                    1000.0 * sum(age) / len(age) if age else float("nan"))
+                    1000.0 * sum(age) / len(age) if age else float("nan"), took,
+                    got[-1] - got[0] if got else float("nan"))
 
 
 def count_missed(stamps: list[float], expected_hz: float, seconds: float) -> int:

@@ -64,15 +64,14 @@ class Mission:
         return bool(self.success)
 
 
-_LEGS = {"to_shelf": (0.0, 0.45), "home": (0.55, 1.0)}
-
-
 class MissionRunner(RobotNode):
     """Runs pick missions with the navigator (action) and the gripper (services).
 
     ``start(item_id, shelf)`` returns a :class:`Mission` at once; the mission runs as a
     coroutine in the executor and reports progress from the action's feedback.
     """
+
+    LEGS = {"to_shelf": (0.0, 0.45), "home": (0.55, 1.0)}  # the share of the mission each drive covers
 
     def __init__(self, namespace: str = "", home: list[float] | None = None):
         super().__init__("mission_runner", namespace)
@@ -139,7 +138,7 @@ class MissionRunner(RobotNode):
         self.end(mission, True, f"delivered {mission.item_id}")
 
     async def drive(self, mission: Mission, point, leg: str) -> bool:
-        low, high = _LEGS[leg]
+        low, high = self.LEGS[leg]
 
         def on_feedback(feedback_msg) -> None:
             done = feedback_msg.feedback.progress

@@ -24,8 +24,9 @@ from course_helpers.chapters.ch10_capstone.warehouse import SPEED_LIMIT
 
 
 @dataclass
-class _Drive:
-    """The goal being driven: its handle, target [m], speed [m/s] and the distance so far [m]."""
+class Drive:
+    """The goal being driven: its handle, target [m], speed [m/s], the distance so far [m], and
+    ``done``, the future that the execute callback awaits and the control loop completes."""
 
     goal_handle: object
     target: tuple[float, float]
@@ -49,7 +50,7 @@ class Navigator(RobotNode):
         self.tolerance = self.declare_parameter("goal_tolerance", 0.05).value  # [m]
         self.add_on_set_parameters_callback(self.check_parameters)
         self.pose: tuple[float, float] | None = None
-        self.active: _Drive | None = None
+        self.active: Drive | None = None
         self.cmd_publisher = self.create_publisher(Twist, "cmd_vel", COMMAND_QOS)
         self.odom_subscription = self.create_subscription(Odometry, "odom", self.on_odom, ODOM_QOS)
         self.server = ActionServer(self, Navigate, "navigate", execute_callback=self.execute,
@@ -92,8 +93,8 @@ class Navigator(RobotNode):
             self.finish("preempted")
         target = (goal_handle.request.target.x, goal_handle.request.target.y)
         distance = math.dist(self.pose, target)
-        drive = _Drive(goal_handle, target, goal_handle.request.speed, max(distance, 1e-6),
-                       self.pose, Future())
+        drive = Drive(goal_handle, target, goal_handle.request.speed, max(distance, 1e-6),
+                      self.pose, Future())
         self.active = drive
         self.set_state(f"navigating to ({target[0]:.1f}, {target[1]:.1f})")
         outcome = await drive.done
@@ -123,8 +124,8 @@ class Navigator(RobotNode):
             self.finish("succeeded")
             return
         cruise = min(drive.speed if drive.speed > 0 else self.max_speed, self.max_speed)
-        speed = max(0.05, min(cruise, 2.0 * remaining))  # slow down over the last metre
-        self.cmd_publisher.publish(Twist(linear=_vector(speed * dx / remaining, speed * dy / remaining)))
+        speed = max(0.05, min(cruise, 3.0 * remaining))  # near the goal: 3 m/s per metre left
+        self.cmd_publisher.publish(Twist(linear=Vector3(x=speed * dx / remaining, y=speed * dy / remaining)))
         drive.goal_handle.publish_feedback(Navigate.Feedback(
             distance_remaining=remaining,
             progress=max(0.0, min(1.0, 1.0 - remaining / drive.start_distance))))
@@ -141,7 +142,3 @@ class Navigator(RobotNode):
             self.finish("aborted (e-stop)")
         elif not msg.engaged and self.state.startswith("goal aborted"):
             self.set_state("idle")
-
-
-def _vector(x: float, y: float) -> Vector3:
-    return Vector3(x=float(x), y=float(y), z=0.0)

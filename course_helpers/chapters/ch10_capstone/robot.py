@@ -1,18 +1,19 @@
 """The warehouse robot's nodes: small ``Node`` subclasses that follow the e-stop.
 
-============== ============================================ =============================
-node           does                                         runs
-============== ============================================ =============================
-camera         30 Hz ``camera/image_raw`` (sensor_msgs/Image) child process (the robot)
-lidar          10 Hz ``scan`` (sensor_msgs/LaserScan)        child process (the robot)
-base           ``cmd_vel`` in, ``odom`` out (nav_msgs)       child process (the robot)
-safety_monitor ``estop`` (RELIABLE + TRANSIENT_LOCAL)        child process (the robot)
-gripper        services ``pick_item``, ``place_item``         kernel
-status_light   follows the e-stop (the late joiner)         kernel
-perception     ``camera/image_raw`` -> ``perception/...``    child process (section 7)
-============== ============================================ =============================
+============== ================================================ =============================
+node           does                                             runs
+============== ================================================ =============================
+camera         30 Hz ``camera/image_raw`` (sensor_msgs/Image)   child process (the robot)
+lidar          10 Hz ``scan`` (sensor_msgs/LaserScan)           child process (the robot)
+base           ``cmd_vel`` in, ``odom`` out (nav_msgs)          child process (the robot)
+safety_monitor ``estop`` (RELIABLE + TRANSIENT_LOCAL)           child process (the robot)
+gripper        services ``pick_item``, ``place_item``           kernel
+status_light   follows the e-stop (the late joiner)             kernel
+perception     ``camera/image_raw`` -> ``perception/...``       child process (section 8)
+============== ================================================ =============================
 
-The navigator is in :mod:`.navigator`, the mission runner in :mod:`.missions`.
+The navigator is in :mod:`.navigator`, the mission runner in :mod:`.missions`. The notebook
+prints each class's source before the robot runs, so what a student reads is what runs.
 
 Every node subscribes to ``estop`` with the e-stop QoS (so a node that starts late learns
 the current state at once), treats an unknown state as engaged (fail safe), and publishes
@@ -37,7 +38,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, LaserScan
-from std_msgs.msg import String
+from std_msgs.msg import Float64, String
 from std_srvs.srv import SetBool, Trigger
 
 from course_helpers.chapters.ch10_capstone.channels import (
@@ -47,6 +48,7 @@ from course_helpers.chapters.ch10_capstone.channels import (
     ESTOP_QOS,
     LATCHED_QOS,
     ODOM_QOS,
+    PROCESSING_TIME_TOPIC,
     SENSOR_QOS,
     STATE_TOPIC,
 )
@@ -213,6 +215,7 @@ class SafetyMonitor(RobotNode):
 
     ``~/engage`` (std_srvs/SetBool): ``data: true`` engages, ``false`` releases. A scan
     with any range below ``stop_distance`` engages it too; only an operator releases it.
+    ``self.current`` is the e-stop message it published last (the robot's current state).
     """
 
     def __init__(self, namespace: str = ""):
@@ -221,12 +224,12 @@ class SafetyMonitor(RobotNode):
         self.publisher = self.create_publisher(EStop, "estop", ESTOP_QOS)
         self.engage_service = self.create_service(SetBool, "~/engage", self.on_engage)
         self.scan_subscription = self.create_subscription(LaserScan, "scan", self.on_scan, SENSOR_QOS)
-        self.engaged = False
         self.publish_estop(False, "", "safety_monitor")  # latched: everyone learns "released"
 
     def publish_estop(self, engaged: bool, reason: str, source: str) -> None:
-        self.engaged = engaged
-        self.publisher.publish(EStop(engaged=engaged, reason=reason, source=source))
+        """Publish the robot's e-stop state: ``engaged``, why, and who decided it."""
+        self.current = EStop(engaged=engaged, reason=reason, source=source)
+        self.publisher.publish(self.current)
         self.set_state(f"ENGAGED by {source}: {reason}" if engaged else "released")
         if engaged:  # one logging call per severity: rclpy fixes a call site's severity
             self.get_logger().warn(f"e-stop ENGAGED by {source}: {reason}")
@@ -242,7 +245,7 @@ class SafetyMonitor(RobotNode):
 
     def on_scan(self, msg: LaserScan) -> None:
         nearest = min(msg.ranges) if msg.ranges else math.inf
-        if nearest < self.stop_distance and not self.engaged:
+        if nearest < self.stop_distance and not self.current.engaged:
             self.publish_estop(True, f"obstacle closer than {self.stop_distance:.2f} m", "safety_monitor")
 
 
@@ -316,7 +319,8 @@ class Perception(RobotNode):
     """Detects the item tag in every camera frame and publishes ``perception/detections``.
 
     ``detector`` picks the implementation ('python' or 'numpy'); ``depth`` is the
-    subscription's history depth; ``reliable`` asks for RELIABLE delivery.
+    subscription's history depth; ``reliable`` asks for RELIABLE delivery. After each frame it
+    publishes how long the frame took on ``~/processing_time_ms``.
     """
 
     def __init__(self, namespace: str = "", detector: str = "python", depth: int = 1,
@@ -330,27 +334,34 @@ class Perception(RobotNode):
                          durability=DurabilityPolicy.VOLATILE)
         self.subscription = self.create_subscription(Image, CAMERA_TOPIC, self.on_frame, qos)
         self.publisher = self.create_publisher(PointStamped, DETECTIONS_TOPIC, 10)
+        self.timing_publisher = self.create_publisher(Float64, PROCESSING_TIME_TOPIC, 10)
         self.set_state(f"detecting ({detector}, depth {depth})")
 
     def on_frame(self, msg: Image) -> None:
+        started = time.perf_counter()
         x, y, pixels = self.detect(bytes(msg.data), msg.width, msg.height)
         out = PointStamped()
         out.header = msg.header  # keep the camera's stamp: the receiver can measure gaps and age
         out.point.x, out.point.y, out.point.z = float(x), float(y), float(pixels)
         self.publisher.publish(out)
+        # the node's own stopwatch: how long this frame took, for anyone diagnosing it [ms]
+        self.timing_publisher.publish(Float64(data=1000.0 * (time.perf_counter() - started)))
 
 
 def make_robot_drivers(namespace: str = "/robot1", camera_hz: float = 30.0,
-                       home: list[float] | None = None, camera: bool = True) -> list[Node]:
+                       home: list[float] | None = None, camera: bool = True,
+                       safety_monitor: bool = True) -> list[Node]:
     """The robot's own computer, as a child-process target: ``rt.spawn('robot1', make_robot_drivers)``.
 
     Args: ``namespace`` of the robot, ``camera_hz`` the camera's rate [Hz], ``home`` its start
-    position [x, y] in metres (default: its dock), ``camera`` False leaves the camera out.
-    Returns: the safety monitor, base, LIDAR (and camera) nodes, which the child spins.
+    position [x, y] in metres (default: its dock), ``camera`` False leaves the camera out,
+    ``safety_monitor`` False leaves the safety monitor out (one of your own runs elsewhere).
+    Returns: the safety monitor, base, LIDAR and camera nodes, which the child spins.
     """
     home = list(home or home_of(namespace))
-    nodes: list[Node] = [SafetyMonitor(namespace), BaseController(namespace, home),
-                         LidarDriver(namespace, home=home)]
+    nodes: list[Node] = [BaseController(namespace, home), LidarDriver(namespace, home=home)]
+    if safety_monitor:
+        nodes.insert(0, SafetyMonitor(namespace))
     if camera:
         nodes.append(CameraDriver(namespace, rate_hz=camera_hz))
     return nodes

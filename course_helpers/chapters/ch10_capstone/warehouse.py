@@ -13,7 +13,8 @@ SHELVES = {  # pick positions in the map frame [m]
     "B1": (1.5, -1.0),
     "B2": (2.5, -1.0),
 }
-HOMES = {"robot1": (0.0, 0.0), "robot2": (0.0, 2.5), "robot3": (0.0, -2.0)}
+HOMES = {"robot1": (0.0, 0.0), "robot2": (0.0, 2.5), "robot3": (0.0, -2.0),
+         "robot4": (1.5, 0.4), "robot5": (1.5, -0.4)}  # 4 and 5: the exercise's fleet, near the shelves
 SPEED_LIMIT = 2.0  # the fastest any robot may be told to go [m/s]
 
 

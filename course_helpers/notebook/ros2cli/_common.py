@@ -1,11 +1,18 @@
-"""Pieces shared by the ``%ros2`` verbs: the argparse classes that print into the cell,
-argument types, graph-name helpers and the polling tick (all chapters that use ``%ros2``).
+"""Pieces shared by the ``%ros2`` verbs: the argparse classes that print into the cell, the verb
+tables, the options several verbs share, argument types, graph-name helpers and the polling tick.
+
+Each command module describes its verbs as a table of :class:`Verb` rows, each with its
+:class:`Option` list; an option that several verbs take (``-t/--show-types``, ``-c/--count-*``,
+``--include-hidden-nodes``, an entity's name) is declared once here, and :func:`add_verb_table`
+turns a table into argparse sub-commands.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 
 from course_helpers.core.errors import CourseError
 from course_helpers.core.names import full_name, is_hidden
@@ -61,14 +68,112 @@ def _verbs(parser):
     return verbs
 
 
-def _positive_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        value = 0.0
-    if not value > 0 or math.isinf(value):
-        raise argparse.ArgumentTypeError(f"expected a number of seconds/Hz > 0, got {text!r}")
-    return value
+@dataclass(frozen=True)
+class Option:
+    """One argument of a verb: the flags (or the positional name) and what ``add_argument`` gets."""
+
+    flags: tuple[str, ...]
+    settings: dict
+
+    def add_to(self, parser) -> None:
+        parser.add_argument(*self.flags, **self.settings)
+
+
+@dataclass(frozen=True)
+class OneOf:
+    """Options of which a command line may give at most one (argparse's mutually exclusive group)."""
+
+    options: tuple[Option, ...]
+
+    def add_to(self, parser) -> None:
+        group = parser.add_mutually_exclusive_group()
+        for each in self.options:
+            each.add_to(group)
+
+
+@dataclass(frozen=True)
+class Verb:
+    """One verb of a command: its name, help, what runs it (``run(rt, args)`` returns a failure
+    text or None) and its options."""
+
+    name: str
+    help: str
+    run: Callable
+    options: tuple = ()
+
+
+def option(*flags: str, **settings) -> Option:
+    return Option(flags, settings)
+
+
+def add_verb_table(parser, table: Iterable[Verb]) -> None:
+    """Give ``parser`` one sub-command per row of ``table``."""
+    verbs = _verbs(parser)
+    for verb in table:
+        sub = verbs.add_parser(verb.name, help=verb.help)
+        for each in verb.options:
+            each.add_to(sub)
+        sub.set_defaults(func=verb.run)
+
+
+# ---------------------------------------------------------------------- options several verbs take
+def show_types(kind: str) -> Option:
+    """``-t/--show-types`` of a list of ``kind``s (topic, service, action)."""
+    return option("-t", "--show-types", action="store_true", help=f"Additionally show the {kind} type")
+
+
+def count_of(things: str, flag: str | None = None, what: str | None = None) -> Option:
+    """``-c/--count-<things>``: print only how many there are."""
+    return option("-c", flag or f"--count-{things}", action="store_true",
+                  help=f"Only display the number of {what or things}")
+
+
+def name_of(kind: str, dest: str, example: str, purpose: str = "", **settings) -> Option:
+    """The positional name of a ROS entity (``topic_name``, ``service_name`` ...)."""
+    return option(dest, help=f"Name of the ROS {kind}{purpose}, e.g. {example}", **settings)
+
+
+NODE_NAME = name_of("node", "node_name", "/talker")
+INCLUDE_HIDDEN_NODES = option("--include-hidden-nodes", action="store_true",
+                              help="Consider hidden nodes as well")
+
+
+def _number(convert: Callable, minimum: float, above: bool, expected: str) -> Callable:
+    """An argparse type: ``convert(text)``, finite, above (or at least) ``minimum``."""
+    def parse(text):
+        try:
+            value = convert(text)
+        except ValueError:
+            value = None
+        if value is None or math.isinf(value) or not (value > minimum if above else value >= minimum):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
+
+
+_positive_float = _number(float, 0.0, True, "a number of seconds/Hz > 0")
+_positive_int = _number(int, 1, False, "a whole number >= 1")
+_non_negative_int = _number(int, 0, False, "a whole number >= 0")
+_non_negative_float = _number(float, 0.0, False, "a number >= 0")
+
+
+def print_names(pairs, show_types: bool = False, count_only: bool = False) -> None:
+    """What a ``list`` verb prints for ``(name, types)`` pairs: each name (with its types), or how many."""
+    if count_only:
+        print(len(pairs))
+        return
+    for name, types in pairs:
+        print(f"{name} [{', '.join(types)}]" if show_types else name)
+
+
+def print_types(kind: str, given: str, types: list[str]) -> str | None:
+    """What a ``type`` verb prints: each type of the ``kind`` named ``given``, or ros2cli's failure."""
+    if not types:
+        return f"Unknown {kind} '{given}'"
+    for each in types:
+        print(each)
+    return None
 
 
 def _is_hidden(name: str) -> bool:

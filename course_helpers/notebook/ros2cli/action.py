@@ -17,47 +17,24 @@ from course_helpers.core.waiting import poll_until
 from course_helpers.notebook.ros2cli._common import (
     _TICK_S,
     SERVICE_WAIT_S,
+    Verb,
     _check_same_type,
     _positive_float,
     _topic_arg,
-    _verbs,
+    add_verb_table,
+    count_of,
+    name_of,
+    option,
+    print_names,
+    print_types,
+    show_types,
 )
-
-
-def add_verbs(parser):
-    verbs = _verbs(parser)
-    p = verbs.add_parser("list", help="Output a list of action names")
-    p.add_argument("-t", "--show-types", action="store_true", help="Additionally show the action type")
-    p.add_argument("-c", "--count-actions", action="store_true", help="Only display the number of actions")
-    p.set_defaults(func=_action_list)
-    p = verbs.add_parser("info", help="Print information about an action")
-    p.add_argument("action_name", help="Name of the ROS action, e.g. /fibonacci")
-    p.add_argument("-t", "--show-types", action="store_true", help="Additionally show the action type")
-    p.add_argument("-c", "--count", action="store_true",
-                   help="Only display the number of action clients and action servers")
-    p.set_defaults(func=_action_info)
-    p = verbs.add_parser("type", help="Print an action's type")
-    p.add_argument("action_name", help="Name of the ROS action, e.g. /fibonacci")
-    p.set_defaults(func=_action_type)
-    p = verbs.add_parser("send_goal", help="Send an action goal")
-    p.add_argument("action_name", help="Name of the ROS action, e.g. /fibonacci")
-    p.add_argument("action_type", help="Type of the ROS action, e.g. course_interfaces/action/Fibonacci")
-    p.add_argument("goal", nargs="?", default="{}", help="Goal values in YAML, e.g. \"{order: 5}\"")
-    p.add_argument("-f", "--feedback", action="store_true", help="Echo feedback messages for the goal")
-    p.add_argument("--timeout", type=_positive_float, default=60.0, metavar="S",
-                   help="Give up (and cancel the goal) after S seconds (default: 60)")
-    p.set_defaults(func=_action_send_goal)
 
 
 def _action_list(rt, args):
     from rclpy.action import get_action_names_and_types
 
-    pairs = sorted(get_action_names_and_types(rt.graph))
-    if args.count_actions:
-        print(len(pairs))
-        return None
-    for name, types in pairs:
-        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+    print_names(sorted(get_action_names_and_types(rt.graph)), args.show_types, args.count_actions)
     return None
 
 
@@ -100,12 +77,7 @@ def _action_types(rt, action: str) -> list[str]:
 
 
 def _action_type(rt, args):
-    types = _action_types(rt, _topic_arg(args.action_name))
-    if not types:
-        return f"Unknown action '{args.action_name}'"
-    for each in types:
-        print(each)
-    return None
+    return print_types("action", args.action_name, _action_types(rt, _topic_arg(args.action_name)))
 
 
 _GOAL_STATUS = {1: "ACCEPTED", 2: "EXECUTING", 3: "CANCELING", 4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}
@@ -166,3 +138,24 @@ def _action_send_goal(rt, args):
                 print("(no answer to the cancel request)")
         rt.call_in_executor(client.destroy)
     return None
+
+
+ACTION_NAME = name_of("action", "action_name", "/fibonacci")
+VERBS = (
+    Verb("list", "Output a list of action names", _action_list, (show_types("action"), count_of("actions"))),
+    Verb("info", "Print information about an action", _action_info, (
+        ACTION_NAME, show_types("action"),
+        count_of("actions", flag="--count", what="action clients and action servers"))),
+    Verb("type", "Print an action's type", _action_type, (ACTION_NAME,)),
+    Verb("send_goal", "Send an action goal", _action_send_goal, (
+        ACTION_NAME,
+        option("action_type", help="Type of the ROS action, e.g. course_interfaces/action/Fibonacci"),
+        option("goal", nargs="?", default="{}", help="Goal values in YAML, e.g. \"{order: 5}\""),
+        option("-f", "--feedback", action="store_true", help="Echo feedback messages for the goal"),
+        option("--timeout", type=_positive_float, default=60.0, metavar="S",
+               help="Give up (and cancel the goal) after S seconds (default: 60)"))),
+)
+
+
+def add_verbs(parser):
+    add_verb_table(parser, VERBS)

@@ -12,31 +12,7 @@ from course_helpers.core.msg_yaml import (
     element_type,
 )
 from course_helpers.core.validation import interface_name, resolve_interface
-from course_helpers.notebook.ros2cli._common import (
-    _verbs,
-)
-
-
-def add_verbs(parser):
-    verbs = _verbs(parser)
-    p = verbs.add_parser("show", help="Output the interface definition")
-    p.add_argument("type", help="Interface type, e.g. std_msgs/msg/String or std_srvs/srv/SetBool")
-    comments = p.add_mutually_exclusive_group()
-    comments.add_argument("--all-comments", action="store_true",
-                          help="Show all comments, including for nested interface definitions")
-    comments.add_argument("--no-comments", action="store_true", help="Show no comments or whitespace")
-    p.set_defaults(func=_interface_show)
-    p = verbs.add_parser("list", help="List all interface types available")
-    p.add_argument("-m", "--only-msgs", action="store_true", help="Print out only the messages")
-    p.add_argument("-s", "--only-srvs", action="store_true", help="Print out only the services")
-    p.add_argument("-a", "--only-actions", action="store_true", help="Print out only the actions")
-    p.set_defaults(func=_interface_list)
-    p = verbs.add_parser("packages", help="Output a list of packages that provide interfaces")
-    p.set_defaults(func=_interface_packages)
-    p = verbs.add_parser("package", help="Output a list of the interfaces of a package")
-    p.add_argument("package_name", help="Name of the package, e.g. std_msgs")
-    p.set_defaults(func=_interface_package)
-
+from course_helpers.notebook.ros2cli._common import OneOf, Verb, add_verb_table, option
 
 _KINDS = ("msg", "srv", "action")
 _PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32",
@@ -193,3 +169,23 @@ def _interface_package(rt, args):
     for full in names:
         print(full)
     return None
+
+
+VERBS = (
+    Verb("show", "Output the interface definition", _interface_show, (
+        option("type", help="Interface type, e.g. std_msgs/msg/String or std_srvs/srv/SetBool"),
+        OneOf((option("--all-comments", action="store_true",
+                      help="Show all comments, including for nested interface definitions"),
+               option("--no-comments", action="store_true", help="Show no comments or whitespace"))))),
+    Verb("list", "List all interface types available", _interface_list, tuple(
+        option(short, f"--only-{kinds}", action="store_true", help=f"Print out only the {what}")
+        for short, kinds, what in (("-m", "msgs", "messages"), ("-s", "srvs", "services"),
+                                   ("-a", "actions", "actions")))),
+    Verb("packages", "Output a list of packages that provide interfaces", _interface_packages),
+    Verb("package", "Output a list of the interfaces of a package", _interface_package, (
+        option("package_name", help="Name of the package, e.g. std_msgs"),)),
+)
+
+
+def add_verbs(parser):
+    add_verb_table(parser, VERBS)

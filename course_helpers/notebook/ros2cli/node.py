@@ -4,24 +4,14 @@
 from __future__ import annotations
 
 from course_helpers.notebook.ros2cli._common import (
+    Verb,
     _absolute,
     _graph_node_names,
     _is_hidden,
-    _verbs,
+    add_verb_table,
+    count_of,
+    option,
 )
-
-
-def add_verbs(parser):
-    verbs = _verbs(parser)
-    p = verbs.add_parser("list", help="Output a list of available nodes")
-    p.add_argument("-a", "--all", action="store_true", help="Display all nodes even hidden ones")
-    p.add_argument("-c", "--count-nodes", action="store_true", help="Only display the number of nodes")
-    p.set_defaults(func=_node_list)
-    p = verbs.add_parser("info", help="Output information about a node")
-    p.add_argument("node_name", help="Fully qualified node name, e.g. /talker")
-    p.add_argument("--include-hidden", action="store_true",
-                   help="Display hidden topics, services, and actions as well")
-    p.set_defaults(func=_node_info)
 
 
 def _split_node_name(fqn: str) -> tuple[str, str]:
@@ -80,3 +70,18 @@ def _node_info(rt, args):
         print(f"  {title}:")
         _print_names_and_types(keep(pairs))
     return None
+
+
+VERBS = (
+    Verb("list", "Output a list of available nodes", _node_list, (
+        option("-a", "--all", action="store_true", help="Display all nodes even hidden ones"),
+        count_of("nodes"))),
+    Verb("info", "Output information about a node", _node_info, (
+        option("node_name", help="Fully qualified node name, e.g. /talker"),
+        option("--include-hidden", action="store_true",
+               help="Display hidden topics, services, and actions as well"))),
+)
+
+
+def add_verbs(parser):
+    add_verb_table(parser, VERBS)

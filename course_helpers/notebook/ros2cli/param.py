@@ -7,43 +7,15 @@ import yaml
 
 from course_helpers.core.errors import WaitTimeout
 from course_helpers.notebook.ros2cli._common import (
+    INCLUDE_HIDDEN_NODES,
+    NODE_NAME,
     SERVICE_WAIT_S,
+    Verb,
     _absolute,
     _graph_node_names,
-    _verbs,
+    add_verb_table,
+    option,
 )
-
-
-def add_verbs(parser):
-    verbs = _verbs(parser)
-    p = verbs.add_parser("list", help="Output a list of available parameters")
-    p.add_argument("node_name", nargs="?", help="Name of the ROS node (default: every node)")
-    p.add_argument("--param-type", action="store_true", help="Print parameter types with parameter names")
-    p.add_argument("--param-prefixes", nargs="+", default=[], metavar="PREFIX",
-                   help="Only list parameters with the provided prefixes")
-    p.add_argument("--include-hidden-nodes", action="store_true", help="Consider hidden nodes as well")
-    p.set_defaults(func=_param_list)
-    p = verbs.add_parser("get", help="Get a parameter")
-    p.add_argument("node_name", help="Name of the ROS node, e.g. /talker")
-    p.add_argument("parameter_name", help="Name of the parameter")
-    p.add_argument("--hide-type", action="store_true", help="Hide the type information")
-    p.add_argument("--include-hidden-nodes", action="store_true", help="Consider hidden nodes as well")
-    p.set_defaults(func=_param_get)
-    p = verbs.add_parser("set", help="Set a parameter")
-    p.add_argument("node_name", help="Name of the ROS node, e.g. /talker")
-    p.add_argument("parameter_name", help="Name of the parameter")
-    p.add_argument("value", help="Value of the parameter (YAML: 5, 2.5, true, hello, [1, 2])")
-    p.add_argument("--include-hidden-nodes", action="store_true", help="Consider hidden nodes as well")
-    p.set_defaults(func=_param_set)
-    p = verbs.add_parser("dump", help="Show all of the parameters of a node in YAML file format")
-    p.add_argument("node_name", help="Name of the ROS node, e.g. /talker")
-    p.add_argument("--include-hidden-nodes", action="store_true", help="Consider hidden nodes as well")
-    p.set_defaults(func=_param_dump)
-    p = verbs.add_parser("describe", help="Show descriptive information about declared parameters")
-    p.add_argument("node_name", help="Name of the ROS node, e.g. /talker")
-    p.add_argument("parameter_names", nargs="+", help="Names of the parameters")
-    p.add_argument("--include-hidden-nodes", action="store_true", help="Consider hidden nodes as well")
-    p.set_defaults(func=_param_describe)
 
 
 def _require_node(rt, node_name: str, include_hidden: bool) -> str | None:
@@ -217,3 +189,30 @@ def _param_describe(rt, args):
             if d.additional_constraints:
                 print(f"    Additional constraints: {d.additional_constraints}")
     return None
+
+
+PARAMETER_NAME = option("parameter_name", help="Name of the parameter")
+VERBS = (
+    Verb("list", "Output a list of available parameters", _param_list, (
+        option("node_name", nargs="?", help="Name of the ROS node (default: every node)"),
+        option("--param-type", action="store_true", help="Print parameter types with parameter names"),
+        option("--param-prefixes", nargs="+", default=[], metavar="PREFIX",
+               help="Only list parameters with the provided prefixes"),
+        INCLUDE_HIDDEN_NODES)),
+    Verb("get", "Get a parameter", _param_get, (
+        NODE_NAME, PARAMETER_NAME,
+        option("--hide-type", action="store_true", help="Hide the type information"), INCLUDE_HIDDEN_NODES)),
+    Verb("set", "Set a parameter", _param_set, (
+        NODE_NAME, PARAMETER_NAME,
+        option("value", help="Value of the parameter (YAML: 5, 2.5, true, hello, [1, 2])"),
+        INCLUDE_HIDDEN_NODES)),
+    Verb("dump", "Show all of the parameters of a node in YAML file format", _param_dump,
+         (NODE_NAME, INCLUDE_HIDDEN_NODES)),
+    Verb("describe", "Show descriptive information about declared parameters", _param_describe, (
+        NODE_NAME, option("parameter_names", nargs="+", help="Names of the parameters"),
+        INCLUDE_HIDDEN_NODES)),
+)
+
+
+def add_verbs(parser):
+    add_verb_table(parser, VERBS)

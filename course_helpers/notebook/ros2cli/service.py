@@ -11,38 +11,19 @@ from course_helpers.core.msg_yaml import (
 from course_helpers.core.validation import interface_name, resolve_interface
 from course_helpers.notebook.ros2cli._common import (
     SERVICE_WAIT_S,
+    Verb,
     _check_same_type,
     _is_hidden,
     _positive_float,
     _topic_arg,
-    _verbs,
+    add_verb_table,
+    count_of,
+    name_of,
+    option,
+    print_names,
+    print_types,
+    show_types,
 )
-
-
-def add_verbs(parser):
-    verbs = _verbs(parser)
-    p = verbs.add_parser("list", help="Output a list of available services")
-    p.add_argument("-t", "--show-types", action="store_true", help="Additionally show the service type")
-    p.add_argument("-c", "--count-services", action="store_true", help="Only display the number of services")
-    p.add_argument("--include-hidden-services", action="store_true", help="Consider hidden services as well")
-    p.set_defaults(func=_service_list)
-    p = verbs.add_parser("type", help="Output a service's type")
-    p.add_argument("service_name", help="Name of the ROS service, e.g. /add_two_ints")
-    p.set_defaults(func=_service_type)
-    p = verbs.add_parser("info", help="Print a service's type and how many servers and clients it has")
-    p.add_argument("service_name", help="Name of the ROS service, e.g. /add_two_ints")
-    p.set_defaults(func=_service_info)
-    p = verbs.add_parser("find", help="Output a list of available services of a given type")
-    p.add_argument("service_type", help="Name of the ROS service type, e.g. std_srvs/srv/SetBool")
-    p.set_defaults(func=_service_find)
-    p = verbs.add_parser("call", help="Call a service")
-    p.add_argument("service_name", help="Name of the ROS service to call, e.g. /add_two_ints")
-    p.add_argument("service_type", help="Type of the ROS service, e.g. std_srvs/srv/SetBool")
-    p.add_argument("values", nargs="?", default="{}", help="Request values in YAML, e.g. \"{data: true}\"")
-    p.add_argument("--timeout", type=_positive_float, default=SERVICE_WAIT_S, metavar="S",
-                   help=f"Wait at most S seconds for the server and for the response "
-                        f"(default: {SERVICE_WAIT_S:g})")
-    p.set_defaults(func=_service_call)
 
 
 def _service_types(rt, service: str) -> list[str]:
@@ -55,29 +36,19 @@ def _service_types(rt, service: str) -> list[str]:
 def _service_list(rt, args):
     pairs = sorted((n, t) for n, t in rt.graph.get_service_names_and_types()
                    if args.include_hidden_services or not _is_hidden(n))
-    if args.count_services:
-        print(len(pairs))
-        return None
-    for name, types in pairs:
-        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+    print_names(pairs, args.show_types, args.count_services)
     return None
 
 
 def _service_type(rt, args):
-    service = _topic_arg(args.service_name)
-    types = _service_types(rt, service)
-    if not types:
-        return f"Unknown service '{args.service_name}'"
-    for each in types:
-        print(each)
-    return None
+    return print_types("service", args.service_name, _service_types(rt, _topic_arg(args.service_name)))
 
 
 def _service_info(rt, args):
     service = _topic_arg(args.service_name)
     types = _service_types(rt, service)
     if not types:
-        return f"Unknown service '{args.service_name}'"
+        return print_types("service", args.service_name, types)
     print(f"Type: {', '.join(types)}")
     print(f"Clients count: {rt.graph.count_clients(service)}")
     print(f"Services count: {rt.graph.count_services(service)}")
@@ -121,3 +92,27 @@ def _service_call(rt, args):
     finally:
         rt.call_in_executor(rt.graph.destroy_client, client)
     return None
+
+
+SERVICE_NAME = name_of("service", "service_name", "/add_two_ints")
+VERBS = (
+    Verb("list", "Output a list of available services", _service_list, (
+        show_types("service"), count_of("services"),
+        option("--include-hidden-services", action="store_true", help="Consider hidden services as well"))),
+    Verb("type", "Output a service's type", _service_type, (SERVICE_NAME,)),
+    Verb("info", "Print a service's type and how many servers and clients it has", _service_info,
+         (SERVICE_NAME,)),
+    Verb("find", "Output a list of available services of a given type", _service_find, (
+        option("service_type", help="Name of the ROS service type, e.g. std_srvs/srv/SetBool"),)),
+    Verb("call", "Call a service", _service_call, (
+        name_of("service", "service_name", "/add_two_ints", " to call"),
+        option("service_type", help="Type of the ROS service, e.g. std_srvs/srv/SetBool"),
+        option("values", nargs="?", default="{}", help="Request values in YAML, e.g. \"{data: true}\""),
+        option("--timeout", type=_positive_float, default=SERVICE_WAIT_S, metavar="S",
+               help=f"Wait at most S seconds for the server and for the response "
+                    f"(default: {SERVICE_WAIT_S:g})"))),
+)
+
+
+def add_verbs(parser):
+    add_verb_table(parser, VERBS)

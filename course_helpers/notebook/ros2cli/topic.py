@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-import argparse
 import collections
 import math
 import time
@@ -28,11 +27,22 @@ from course_helpers.core.validation import interface_name
 from course_helpers.core.waiting import poll_until
 from course_helpers.notebook.ros2cli._common import (
     _TICK_S,
+    OneOf,
+    Verb,
     _check_same_type,
     _is_hidden,
+    _non_negative_float,
+    _non_negative_int,
     _positive_float,
+    _positive_int,
     _topic_arg,
-    _verbs,
+    add_verb_table,
+    count_of,
+    name_of,
+    option,
+    print_names,
+    print_types,
+    show_types,
 )
 from course_helpers.notebook.ros2cli.topic_graph import (
     choose_subscription_qos,
@@ -52,145 +62,10 @@ MATCH_WAIT_S = 5.0  # how long topic pub waits for matching subscriptions
 TRUNCATE_LENGTH = 128  # ros2cli's default for arrays and strings in echo
 
 
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
-
-
-def _non_negative_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
-    return value
-
-
-def _non_negative_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not value >= 0 or math.isinf(value):
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
-    return value
-
-
-def _add_qos_arguments(parser, entity: str, default_profile: str) -> None:
-    parser.add_argument("--qos-profile", choices=QoSPresetProfiles.short_keys(), default=default_profile,
-                        help=f"QoS preset profile to {entity} with (default: {default_profile})")
-    parser.add_argument("--qos-depth", type=_positive_int, metavar="N",
-                        help="Queue size setting to " + entity + " with (overrides the profile's depth)")
-    parser.add_argument("--qos-history", choices=QoSHistoryPolicy.short_keys(),
-                        help="History of samples setting to " + entity + " with")
-    parser.add_argument("--qos-reliability", choices=QoSReliabilityPolicy.short_keys(),
-                        help="Reliability setting to " + entity + " with")
-    parser.add_argument("--qos-durability", choices=QoSDurabilityPolicy.short_keys(),
-                        help="Durability setting to " + entity + " with")
-
-
-def add_verbs(parser):
-    verbs = _verbs(parser)
-    p = verbs.add_parser("list", help="Output a list of available topics")
-    p.add_argument("-t", "--show-types", action="store_true", help="Additionally show the topic type")
-    p.add_argument("-c", "--count-topics", action="store_true", help="Only display the number of topics")
-    p.add_argument("-v", "--verbose", action="store_true",
-                   help="List full details about each topic (publishers and subscribers)")
-    p.add_argument("--include-hidden-topics", action="store_true", help="Consider hidden topics as well")
-    p.set_defaults(func=_topic_list)
-
-    p = verbs.add_parser("info", help="Print information about a topic")
-    p.add_argument("topic_name", help="Name of the ROS topic, e.g. /chatter")
-    p.add_argument("-v", "--verbose", action="store_true",
-                   help="Print node name, type, GID and QoS profile of each publisher and subscription")
-    p.set_defaults(func=_topic_info)
-
-    p = verbs.add_parser("type", help="Print a topic's type")
-    p.add_argument("topic_name", help="Name of the ROS topic, e.g. /chatter")
-    p.set_defaults(func=_topic_type)
-
-    p = verbs.add_parser("find", help="Output a list of available topics of a given type")
-    p.add_argument("topic_type", help="Name of the ROS topic type, e.g. std_msgs/msg/String")
-    p.add_argument("-c", "--count-topics", action="store_true", help="Only display the number of topics")
-    p.set_defaults(func=_topic_find)
-
-    p = verbs.add_parser("echo", help="Output messages from a topic")
-    p.add_argument("topic_name", help="Name of the ROS topic to listen to, e.g. /chatter")
-    p.add_argument("message_type", nargs="?",
-                   help="Type of the message, e.g. std_msgs/msg/String (default: found in the graph)")
-    p.add_argument("--once", action="store_true", help="Print the first message received and stop")
-    p.add_argument("--count", type=_positive_int, metavar="N", help="Stop after N messages")
-    p.add_argument("--duration", "--timeout", dest="duration", type=_positive_float, metavar="S",
-                   help=f"Stop after S seconds (default: {ECHO_DEFAULT_S:g} s unless --count/--once)")
-    p.add_argument("--field", help="Echo a selected field of the message, e.g. 'linear.x'")
-    p.add_argument("--csv", action="store_true", help="Output all fields separated by commas")
-    p.add_argument("-f", "--full-length", action="store_true",
-                   help="Output all elements of arrays and strings (no truncation)")
-    p.add_argument("-l", "--truncate-length", type=_non_negative_int, default=TRUNCATE_LENGTH,
-                   metavar="N",
-                   help=f"Truncate arrays and strings to N elements (default: {TRUNCATE_LENGTH})")
-    p.add_argument("--no-arr", action="store_true", help="Don't print array fields of messages")
-    p.add_argument("--no-str", action="store_true", help="Don't print string fields of messages")
-    p.add_argument("--flow-style", action="store_true", help="Print messages in YAML flow style (one line)")
-    _add_qos_arguments(p, "subscribe", "sensor_data")
-    p.set_defaults(func=_topic_echo)
-
-    p = verbs.add_parser("hz", help="Print the average receiving rate")
-    p.add_argument("topic_name", help="Name of the ROS topic to listen to, e.g. /chatter")
-    p.add_argument("-w", "--window", type=_positive_int, default=10000, metavar="N",
-                   help="Window size, in number of messages, for calculating the rate (default: 10000)")
-    p.add_argument("--duration", type=_positive_float, metavar="S",
-                   help=f"Measure for S seconds (default: {HZ_DEFAULT_S:g})")
-    _add_qos_arguments(p, "subscribe", "sensor_data")
-    p.set_defaults(func=topic_hz)
-
-    p = verbs.add_parser("bw", help="Display the bandwidth used by a topic")
-    p.add_argument("topic_name", help="Name of the ROS topic to listen to, e.g. /chatter")
-    p.add_argument("-w", "--window", type=_positive_int, default=100, metavar="N",
-                   help="Maximum window size, in number of messages (default: 100)")
-    p.add_argument("--duration", type=_positive_float, metavar="S",
-                   help=f"Measure for S seconds (default: {HZ_DEFAULT_S:g})")
-    _add_qos_arguments(p, "subscribe", "sensor_data")
-    p.set_defaults(func=topic_bw)
-
-    p = verbs.add_parser("pub", help="Publish a message to a topic")
-    p.add_argument("topic_name", help="Name of the ROS topic to publish to, e.g. /cmd_vel")
-    p.add_argument("message_type", help="Type of the message, e.g. geometry_msgs/msg/Twist")
-    p.add_argument("values", nargs="?", default="{}",
-                   help="Values of the message in YAML, e.g. \"{linear: {x: 0.5}, angular: {z: 0.1}}\"")
-    p.add_argument("-r", "--rate", type=_positive_float, default=1.0, metavar="N",
-                   help="Publishing rate in Hz (default: 1)")
-    p.add_argument("-p", "--print", dest="print_nth", type=_non_negative_int, default=1, metavar="N",
-                   help="Print every N-th published message (0: print none; default: 1)")
-    how_long = p.add_mutually_exclusive_group()
-    how_long.add_argument("-1", "--once", action="store_true", help="Publish one message and stop")
-    how_long.add_argument("-t", "--times", type=_positive_int, metavar="N",
-                          help="Publish N messages and stop")
-    how_long.add_argument("--duration", type=_positive_float, metavar="S",
-                          help=f"Publish for S seconds (default without --once/--times: {PUB_DEFAULT_S:g})")
-    p.add_argument("-w", "--wait-matching-subscriptions", type=_non_negative_int, metavar="N",
-                   help="Wait for N matching subscriptions first (default: 1 with --once/--times, else 0)")
-    p.add_argument("--max-wait-time-secs", type=_positive_float, default=MATCH_WAIT_S, metavar="S",
-                   help=f"Longest wait for matching subscriptions (default: {MATCH_WAIT_S:g})")
-    p.add_argument("--keep-alive", type=_non_negative_float, default=0.1, metavar="S",
-                   help="Keep the publisher alive S seconds after the last message (default: 0.1)")
-    _add_qos_arguments(p, "publish", "default")
-    p.set_defaults(func=_topic_pub)
-
-
 def _topic_list(rt, args):
     pairs = sorted((n, t) for n, t in rt.graph.get_topic_names_and_types()
                    if args.include_hidden_topics or not _is_hidden(n))
-    if args.count_topics:
-        print(len(pairs))
-        return None
-    if args.verbose:
+    if args.verbose and not args.count_topics:
         for title, counter, noun in (("Published topics:", rt.graph.count_publishers, "publisher"),
                                      ("Subscribed topics:", rt.graph.count_subscribers, "subscriber")):
             print(title)
@@ -200,8 +75,7 @@ def _topic_list(rt, args):
                     print(f" * {name} [{', '.join(types)}] {count} {noun}{'s' if count > 1 else ''}")
             print()
         return None
-    for name, types in pairs:
-        print(f"{name} [{', '.join(types)}]" if args.show_types else name)
+    print_names(pairs, args.show_types, args.count_topics)
     return None
 
 
@@ -224,24 +98,13 @@ def _topic_info(rt, args):
 
 
 def _topic_type(rt, args):
-    topic = _topic_arg(args.topic_name)
-    types = topic_types(rt, topic)
-    if not types:
-        return f"Unknown topic '{args.topic_name}'"
-    for each in types:
-        print(each)
-    return None
+    return print_types("topic", args.topic_name, topic_types(rt, _topic_arg(args.topic_name)))
 
 
 def _topic_find(rt, args):
     wanted = interface_name(message_class(args.topic_type))
-    names = sorted(n for n, types in rt.graph.get_topic_names_and_types()
-                   if wanted in types and not _is_hidden(n))
-    if args.count_topics:
-        print(len(names))
-    else:
-        for name in names:
-            print(name)
+    print_names(sorted((n, types) for n, types in rt.graph.get_topic_names_and_types()
+                       if wanted in types and not _is_hidden(n)), count_only=args.count_topics)
     return None
 
 
@@ -353,3 +216,91 @@ def _topic_pub(rt, args):
     if args.duration is None and times is None:
         print(f"(pub stopped after {duration:g} s; use --once, --times N or --duration S to change this)")
     return None
+
+
+def qos_options(entity: str, default_profile: str) -> tuple:
+    """ros2cli's ``--qos-*`` options of a verb that makes a subscription or publisher (``entity``:
+    'subscribe' or 'publish')."""
+    return (
+        option("--qos-profile", choices=QoSPresetProfiles.short_keys(), default=default_profile,
+               help=f"QoS preset profile to {entity} with (default: {default_profile})"),
+        option("--qos-depth", type=_positive_int, metavar="N",
+               help="Queue size setting to " + entity + " with (overrides the profile's depth)"),
+        *(option(f"--qos-{policy}", choices=choices, help=f"{what} setting to {entity} with")
+          for policy, choices, what in (("history", QoSHistoryPolicy.short_keys(), "History of samples"),
+                                        ("reliability", QoSReliabilityPolicy.short_keys(), "Reliability"),
+                                        ("durability", QoSDurabilityPolicy.short_keys(), "Durability"))))
+
+
+def rate_options(window: int, window_help: str) -> tuple:
+    """What ``hz`` and ``bw`` take: the topic, a window of messages, a duration, the QoS options."""
+    return (LISTENED_TOPIC,
+            option("-w", "--window", type=_positive_int, default=window, metavar="N", help=window_help),
+            option("--duration", type=_positive_float, metavar="S",
+                   help=f"Measure for S seconds (default: {HZ_DEFAULT_S:g})"),
+            *qos_options("subscribe", "sensor_data"))
+
+
+TOPIC_NAME = name_of("topic", "topic_name", "/chatter")
+LISTENED_TOPIC = name_of("topic", "topic_name", "/chatter", " to listen to")
+COUNT_TOPICS = count_of("topics")
+VERBS = (
+    Verb("list", "Output a list of available topics", _topic_list, (
+        show_types("topic"), COUNT_TOPICS,
+        option("-v", "--verbose", action="store_true",
+               help="List full details about each topic (publishers and subscribers)"),
+        option("--include-hidden-topics", action="store_true", help="Consider hidden topics as well"))),
+    Verb("info", "Print information about a topic", _topic_info, (
+        TOPIC_NAME,
+        option("-v", "--verbose", action="store_true",
+               help="Print node name, type, GID and QoS profile of each publisher and subscription"))),
+    Verb("type", "Print a topic's type", _topic_type, (TOPIC_NAME,)),
+    Verb("find", "Output a list of available topics of a given type", _topic_find, (
+        option("topic_type", help="Name of the ROS topic type, e.g. std_msgs/msg/String"), COUNT_TOPICS)),
+    Verb("echo", "Output messages from a topic", _topic_echo, (
+        LISTENED_TOPIC,
+        option("message_type", nargs="?",
+               help="Type of the message, e.g. std_msgs/msg/String (default: found in the graph)"),
+        option("--once", action="store_true", help="Print the first message received and stop"),
+        option("--count", type=_positive_int, metavar="N", help="Stop after N messages"),
+        option("--duration", "--timeout", dest="duration", type=_positive_float, metavar="S",
+               help=f"Stop after S seconds (default: {ECHO_DEFAULT_S:g} s unless --count/--once)"),
+        option("--field", help="Echo a selected field of the message, e.g. 'linear.x'"),
+        option("--csv", action="store_true", help="Output all fields separated by commas"),
+        option("-f", "--full-length", action="store_true",
+               help="Output all elements of arrays and strings (no truncation)"),
+        option("-l", "--truncate-length", type=_non_negative_int, default=TRUNCATE_LENGTH, metavar="N",
+               help=f"Truncate arrays and strings to N elements (default: {TRUNCATE_LENGTH})"),
+        option("--no-arr", action="store_true", help="Don't print array fields of messages"),
+        option("--no-str", action="store_true", help="Don't print string fields of messages"),
+        option("--flow-style", action="store_true", help="Print messages in YAML flow style (one line)"),
+        *qos_options("subscribe", "sensor_data"))),
+    Verb("hz", "Print the average receiving rate", topic_hz, rate_options(
+        10000, "Window size, in number of messages, for calculating the rate (default: 10000)")),
+    Verb("bw", "Display the bandwidth used by a topic", topic_bw, rate_options(
+        100, "Maximum window size, in number of messages (default: 100)")),
+    Verb("pub", "Publish a message to a topic", _topic_pub, (
+        name_of("topic", "topic_name", "/cmd_vel", " to publish to"),
+        option("message_type", help="Type of the message, e.g. geometry_msgs/msg/Twist"),
+        option("values", nargs="?", default="{}",
+               help="Values of the message in YAML, e.g. \"{linear: {x: 0.5}, angular: {z: 0.1}}\""),
+        option("-r", "--rate", type=_positive_float, default=1.0, metavar="N",
+               help="Publishing rate in Hz (default: 1)"),
+        option("-p", "--print", dest="print_nth", type=_non_negative_int, default=1, metavar="N",
+               help="Print every N-th published message (0: print none; default: 1)"),
+        OneOf((option("-1", "--once", action="store_true", help="Publish one message and stop"),
+               option("-t", "--times", type=_positive_int, metavar="N", help="Publish N messages and stop"),
+               option("--duration", type=_positive_float, metavar="S",
+                      help=f"Publish for S seconds (default without --once/--times: {PUB_DEFAULT_S:g})"))),
+        option("-w", "--wait-matching-subscriptions", type=_non_negative_int, metavar="N",
+               help="Wait for N matching subscriptions first (default: 1 with --once/--times, else 0)"),
+        option("--max-wait-time-secs", type=_positive_float, default=MATCH_WAIT_S, metavar="S",
+               help=f"Longest wait for matching subscriptions (default: {MATCH_WAIT_S:g})"),
+        option("--keep-alive", type=_non_negative_float, default=0.1, metavar="S",
+               help="Keep the publisher alive S seconds after the last message (default: 0.1)"),
+        *qos_options("publish", "default"))),
+)
+
+
+def add_verbs(parser):
+    add_verb_table(parser, VERBS)

@@ -1,19 +1,17 @@
-"""Timing measurements of chapter 02 (nodes and executors), and their plots.
+"""A blocking callback and the executor: chapter 02's stall measurements, and their plot.
 
 * :func:`spin_for` / :func:`spinning_alone` spin a node in a dedicated single- or multi-threaded
   executor for a few seconds, then destroy it, to compare executors and callback groups.
-* :func:`tick_gaps` / :func:`plot_tick_gaps` turn a timer's tick times into gaps and draw them.
-* :func:`measure_timer_jitter` / :func:`plot_jitter` measure how regularly a timer fires, with
-  and without a CPU-heavy callback competing for the same executor.
+* :func:`measure_blocking` runs a control timer beside a planner that blocks;
+  :func:`tick_gaps` / :func:`plot_tick_gaps` turn a timer's tick times into gaps and draw them.
 
 The measurements run real rclpy timers in the kernel's context; on a busy machine the numbers
 move, so the notebook asserts only what holds under load (a blocking callback stalls a timer of
-its own group; a timer beside a busy callback in one thread is delayed) and prints the rest.
+its own group, and none of another group on another thread) and prints the rest.
 """
 
 from __future__ import annotations
 
-import statistics
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
@@ -175,131 +173,8 @@ def plot_tick_gaps(results: list[GapResult], block_s: float | None = None):
                        label=f"blocking call {block_s * 1e3:.0f} ms")
         ax.set_ylabel("gap (ms)")
         ax.set_title(result.label, fontsize=10, loc="left")
-        ax.legend(loc="upper right", fontsize=7)
+        ax.legend(loc="upper left", fontsize=7)  # over the first ticks, which are short
     axes[-1, 0].set_xlabel("time since first control tick (s)")
     fig.suptitle("Gaps between control-timer ticks", fontsize=11)
-    fig.tight_layout()
-    return fig
-
-
-# ---------------------------------------------------------------------- timer jitter
-class JitterProbe(Node):
-    """A periodic timer that records when it fires, optionally beside a CPU-heavy timer."""
-
-    def __init__(self, period_s: float = 0.01, heavy_ms: float = 0.0, heavy_period_s: float = 0.037,
-                 separate_groups: bool = False, name: str = "jitter_probe"):
-        super().__init__(name)
-        self.heavy_s = heavy_ms / 1e3
-        self.fired: list[float] = []  # time.perf_counter() at each call, s
-        group = MutuallyExclusiveCallbackGroup() if separate_groups else None
-        self.timer = self.create_timer(period_s, self.on_timer)
-        if heavy_ms > 0:
-            self.heavy_timer = self.create_timer(heavy_period_s, self.crunch, callback_group=group)
-
-    def on_timer(self) -> None:
-        self.fired.append(time.perf_counter())
-
-    def crunch(self) -> None:
-        deadline = time.perf_counter() + self.heavy_s
-        total = 0
-        while time.perf_counter() < deadline:  # pure-Python arithmetic: keeps a CPU core busy
-            total += sum(range(200))
-
-
-@dataclass
-class JitterResult:
-    """Intervals between calls of a periodic timer (seconds)."""
-
-    label: str
-    period_s: float
-    intervals_s: list[float]
-
-    @property
-    def deviations_ms(self) -> list[float]:
-        """interval - period, in milliseconds (positive: late)."""
-        return [(i - self.period_s) * 1e3 for i in self.intervals_s]
-
-    @property
-    def std_ms(self) -> float:
-        return statistics.pstdev(self.deviations_ms) if self.intervals_s else float("nan")
-
-    @property
-    def worst_ms(self) -> float:
-        """The largest deviation from the period, either way (ms)."""
-        return max(abs(d) for d in self.deviations_ms) if self.intervals_s else float("nan")
-
-    @property
-    def longest_ms(self) -> float:
-        """The longest interval between two calls (ms)."""
-        return max(self.intervals_s) * 1e3 if self.intervals_s else float("nan")
-
-    def percentile_ms(self, q: float) -> float:
-        """The ``q``-th percentile (0-100) of the absolute deviation from the period (ms)."""
-        values = sorted(abs(d) for d in self.deviations_ms)
-        if not values:
-            return float("nan")
-        return values[min(len(values) - 1, int(round(q / 100 * (len(values) - 1))))]
-
-    def summary(self) -> str:
-        """One line: the number of intervals, the median (p50) and 95th percentile (p95) of the
-        deviation from the period, and the longest interval."""
-        return (f"{self.label}: {len(self.intervals_s)} intervals, deviation from the period "
-                f"p50 {self.percentile_ms(50):.2f} ms, p95 {self.percentile_ms(95):.2f} ms; "
-                f"longest interval {self.longest_ms:.1f} ms")
-
-
-def measure_timer_jitter(period_s: float = 0.01, duration_s: float = 2.0, heavy_ms: float = 0.0,
-                         heavy_period_s: float = 0.037, executor: str = "single",
-                         separate_groups: bool = False, label: str | None = None) -> JitterResult:
-    """Fire a timer every ``period_s`` for ``duration_s`` and return the measured intervals.
-
-    Args:
-        period_s: the timer's period, 0.001..1 s.
-        duration_s: how long to measure, seconds.
-        heavy_ms: > 0 adds a second timer (every ``heavy_period_s`` s) whose callback keeps the CPU
-            busy for that many milliseconds, in the same executor.
-        executor, separate_groups: as in :func:`spin_for`; ``separate_groups`` gives the heavy
-            timer a callback group of its own.
-        label: the result's name (default: 'idle' or a description of the heavy callback).
-
-    Returns:
-        A :class:`JitterResult`.
-    """
-    if not 0.001 <= period_s <= 1:
-        raise CourseError(f"period_s must be 0.001..1 s, got {period_s!r}")
-    if heavy_ms < 0 or heavy_ms >= heavy_period_s * 1e3:
-        raise CourseError(f"heavy_ms must be >= 0 and shorter than heavy_period_s "
-                          f"({heavy_period_s * 1e3:g} ms), got {heavy_ms!r}")
-    node = spin_for(JitterProbe, duration_s, executor, period_s=period_s, heavy_ms=heavy_ms,
-                    heavy_period_s=heavy_period_s, separate_groups=separate_groups)
-    intervals = [b - a for a, b in pairwise(node.fired)]
-    if label is None:
-        label = "idle" if heavy_ms == 0 else f"beside a CPU-heavy callback ({heavy_ms:g} ms)"
-    return JitterResult(label, period_s, intervals)
-
-
-def plot_jitter(results: list[JitterResult], bins: int = 60):
-    """Draw one histogram of timer intervals (ms) per :class:`JitterResult`, with ``bins`` bins on a
-    shared axis; returns the matplotlib figure."""
-    import matplotlib.pyplot as plt
-
-    all_ms = [i * 1e3 for r in results for i in r.intervals_s]
-    if not all_ms:
-        raise CourseError("no intervals to plot; measure for longer")
-    colours = ["#16a34a", "#dc2626", "#7c3aed", "#0891b2"]
-    low, high = 0.0, max(max(all_ms), 2 * results[0].period_s * 1e3)
-    edges = [low + (high - low) * k / bins for k in range(bins + 1)]
-    fig, axes = plt.subplots(len(results), 1, figsize=(8.5, 1.2 + 1.5 * len(results)), sharex=True,
-                             squeeze=False)
-    for ax, result, colour in zip(axes[:, 0], results, colours, strict=False):
-        ax.hist([i * 1e3 for i in result.intervals_s], bins=edges, color=colour, alpha=0.85)
-        ax.axvline(result.period_s * 1e3, color="#111827", linestyle="--", linewidth=1)
-        ax.set_yscale("log")
-        ax.set_ylabel("count")
-        ax.set_title(f"{result.label}: half of the calls within {result.percentile_ms(50):.2f} ms of the "
-                     f"period, 95% within {result.percentile_ms(95):.2f} ms", fontsize=9, loc="left")
-    axes[-1, 0].set_xlabel(f"interval between timer calls (ms); dashed line: the period, "
-                           f"{results[0].period_s * 1e3:g} ms")
-    fig.suptitle("Timer jitter: the same timer, idle and beside a CPU-heavy callback", fontsize=11)
     fig.tight_layout()
     return fig

@@ -1,0 +1,122 @@
+"""A runtime's view of the ROS graph: its hidden node, and answers kept until the graph changes.
+
+Every graph query of the course (``rt.graph_nodes()``, a child's node settling, ``%ros2 node list``)
+goes through the runtime's hidden node ``_course_runtime``. A query costs rcl calls per node (its
+publishers, subscriptions, services and clients), and waits ask again and again. A
+:class:`~course_helpers.core.graph_events.GraphWatcher` counts the graph's changes, so an answer is
+computed once per change and a wait sleeps until the next one. An answer is also kept no longer
+than :data:`WATCHED_PERIOD_S`, so that a change rmw did not signal could cost no more than that.
+Without the watcher (rcl could not be loaded), every query asks rcl again and graph waits look every
+:data:`~course_helpers.core.waiting.UNNOTIFIED_PERIOD_S`.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from rclpy.node import Node
+
+from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S
+from course_helpers.core.graph_events import GraphWatcher
+from course_helpers.core.names import node_full_names, split_full_name
+from course_helpers.core.waiting import UNNOTIFIED_PERIOD_S
+
+INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's daemon nodes
+# A new participant may learn of an older one only at its next periodic announcement (every 3 s
+# outside the course): by this long after the start, the graph shows what was already running.
+GRAPH_SETTLE_S = DEFAULT_ANNOUNCEMENT_S + 0.3
+WATCHED_PERIOD_S = 1.0  # s; with a watcher, a graph wait still looks this often, and answers are
+# kept no longer (a lost event costs no more)
+
+
+class GraphView:
+    """The graph as the hidden node ``INTERNAL_NODE`` in ``context`` sees it; :meth:`close` before the
+    context shuts down. ``started_at`` is when the runtime started (``time.monotonic()``)."""
+
+    def __init__(self, context, started_at: float):
+        self._started_at = started_at
+        self._settled = False
+        self.node = Node(INTERNAL_NODE, context=context, enable_rosout=False, start_parameter_services=False)
+        try:
+            self._watcher: GraphWatcher | None = GraphWatcher(self.node)
+        except (OSError, AttributeError):
+            self._watcher = None
+        self._lock = threading.Lock()
+        self._cached_version: int | None = None
+        self._cache: dict = {}
+
+    @property
+    def wait_period(self) -> float:
+        """How often a wait for something in the graph must look besides the graph's change events."""
+        return WATCHED_PERIOD_S if self._watcher is not None and self._watcher.alive else UNNOTIFIED_PERIOD_S
+
+    def _cached(self, key, compute):
+        """``compute()``, kept until the graph changes or for :data:`WATCHED_PERIOD_S` (not kept
+        without a watcher)."""
+        version = self._watcher.version if self._watcher is not None and self._watcher.alive else None
+        if version is None:
+            return compute()
+        now = time.monotonic()
+        with self._lock:
+            if self._cached_version != version:
+                self._cache, self._cached_version = {}, version
+            if key in self._cache and now - self._cache[key][0] < WATCHED_PERIOD_S:
+                return self._cache[key][1]
+        value = compute()  # a change meanwhile raises the version: the next call computes again
+        with self._lock:
+            if self._cached_version == version:
+                self._cache[key] = (now, value)
+        return value
+
+    def settle(self) -> None:
+        """Wait, once per start, until discovery has found the processes that were already running.
+
+        A new participant announces itself at start, and the others answer; ros2cli keeps a
+        daemon running for the same reason. ``%ros2`` calls this before its first graph query,
+        so a command run right after the runtime started does not show an empty graph.
+        """
+        if not self._settled:
+            remaining = self._started_at + GRAPH_SETTLE_S - time.monotonic()
+            if remaining > 0:
+                time.sleep(remaining)
+            self._settled = True
+
+    def nodes(self, include_hidden: bool = False) -> list[str]:
+        """Full names of all nodes discovered in this domain (the live graph), sorted.
+
+        A node listed without a single endpoint is left out. rclpy gives every node at least its
+        ``/parameter_events`` publisher, so such an entry is either a node still being created or
+        one that rmw keeps listing after its process has left (see :mod:`.child` on the goodbye
+        that overtakes a node's last graph update).
+        """
+        def compute() -> list[str]:
+            names = node_full_names(self.node.get_node_names_and_namespaces(), include_hidden)
+            return [fqn for fqn in names if any(self.entry(fqn))]
+
+        return list(self._cached(("nodes", include_hidden), compute))
+
+    def entry(self, fqn: str) -> tuple:
+        """What the graph lists for node ``fqn``: its publishers, subscriptions, services and clients."""
+        def compute() -> tuple:
+            namespace, name = split_full_name(fqn)
+            try:
+                return tuple(sorted(map(str, call(name, namespace))) for call in (
+                    self.node.get_publisher_names_and_types_by_node,
+                    self.node.get_subscriber_names_and_types_by_node,
+                    self.node.get_service_names_and_types_by_node,
+                    self.node.get_client_names_and_types_by_node))
+            except Exception:  # the node left meanwhile: nothing to settle
+                return ()
+
+        return self._cached(("entry", fqn), compute)
+
+    def close(self) -> None:
+        """Stop the watcher and destroy the hidden node."""
+        if self._watcher is not None:
+            self._watcher.stop()
+            self._watcher = None
+        try:
+            self.node.destroy_node()
+        except Exception:  # the context is gone already
+            pass

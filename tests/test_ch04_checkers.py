@@ -1,0 +1,285 @@
+"""Chapter 04's checkers: each accepts the reference solution, and every criterion fails on a wrong one.
+
+Real nodes over real Fast DDS: the battery checker calls the student's Trigger service from the
+kernel; the relay checker runs the student's node beside a real adder on an executor of its own.
+Each table names the criteria its wrong solution must fail; the tests that run the reference
+solutions also check that the tables cover every criterion the checkers report.
+"""
+
+from __future__ import annotations
+
+import pytest
+from course_interfaces.srv import AddTwoInts
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from std_msgs.msg import Float32
+from std_srvs.srv import SetBool, Trigger
+
+from course_helpers.checks.ch04_services import check_battery_server, check_relay_server
+from course_helpers.solutions.ch04_services import BatteryMonitor, SumRelay
+
+
+def _failed(report) -> set[str]:
+    return {c.name for c in report.criteria if not c.passed}
+
+
+def _covered(table) -> set[str]:
+    return set().union(*(param.values[1] for param in table))
+
+
+# ---------------------------------------------------------------------- 04.1: battery status service
+class BatteryNeedsACapacity(BatteryMonitor):
+    """Wrong: a constructor argument the checker does not give."""
+
+    def __init__(self, capacity_wh):
+        super().__init__()
+
+
+class BatteryCalledBattery(BatteryMonitor):
+    """Wrong: another node name."""
+
+    def __init__(self):
+        Node.__init__(self, "battery")
+        self.level = None
+        self.subscription = self.create_subscription(Float32, "battery_level", self.on_level, 10)
+        self.service = self.create_service(Trigger, "battery_status", self.on_status)
+
+
+class BatteryWithSetBool(BatteryMonitor):
+    """Wrong: offers battery_status as a SetBool."""
+
+    def __init__(self):
+        Node.__init__(self, "battery_monitor")
+        self.level = None
+        self.subscription = self.create_subscription(Float32, "battery_level", self.on_level, 10)
+        self.service = self.create_service(SetBool, "battery_status", self.on_status)
+
+
+class BatteryWithSensorQos(BatteryMonitor):
+    """Wrong: offers the service with the sensor-data QoS profile, which no default client matches."""
+
+    def __init__(self):
+        Node.__init__(self, "battery_monitor")
+        self.level = None
+        self.subscription = self.create_subscription(Float32, "battery_level", self.on_level, 10)
+        self.service = self.create_service(Trigger, "battery_status", self.on_status,
+                                           qos_profile=qos_profile_sensor_data)
+
+
+class BatteryWithoutReturn(BatteryMonitor):
+    """Wrong: fills the response in and forgets to return it."""
+
+    def on_status(self, request, response):
+        super().on_status(request, response)
+
+
+class SilentBattery(BatteryMonitor):
+    """Wrong: always claims the battery is fine, even without a reading."""
+
+    def on_status(self, request, response):
+        response.success = True
+        response.message = f"battery at {self.level}%"
+        return response
+
+
+class BatteryOnTheWrongTopic(BatteryMonitor):
+    """Wrong: listens to 'battery' instead of 'battery_level'."""
+
+    def __init__(self):
+        super().__init__()
+        self.destroy_subscription(self.subscription)
+        self.subscription = self.create_subscription(Float32, "battery", self.on_level, 10)
+
+
+class BatteryWithDecimals(BatteryMonitor):
+    """Wrong: the level with a decimal ('battery at 57.0%'), not rounded to a whole percent."""
+
+    def on_status(self, request, response):
+        super().on_status(request, response)
+        if self.level is not None:
+            response.message = response.message.replace(f"{self.level:.0f}%", f"{self.level:.1f}%")
+        return response
+
+
+class BatteryWithSuccessInverted(BatteryMonitor):
+    """Wrong: success=True means 'the battery is low' here."""
+
+    def on_status(self, request, response):
+        super().on_status(request, response)
+        if self.level is not None:
+            response.success = not response.success
+        return response
+
+
+AFTER_57 = "after a reading of 57%: success is True and the message is not a warning"
+AFTER_12 = "after a reading of 12.4%: success is False and the message is a low-battery warning"
+AFTER_20 = "after a reading of 20%: success is True and the message is not a warning"
+BATTERY_WRONG = [
+    pytest.param(BatteryNeedsACapacity, {"the node can be created"}, id="constructor-argument"),
+    pytest.param(BatteryCalledBattery, {"the node is called battery_monitor"}, id="name"),
+    pytest.param(BatteryWithSetBool, {"it offers /battery_status of type std_srvs/srv/Trigger"}, id="type"),
+    pytest.param(BatteryWithSensorQos, {"the checker's client finds the service"}, id="sensor-qos"),
+    pytest.param(BatteryWithoutReturn, {"it answers before any reading"}, id="no-return"),
+    pytest.param(SilentBattery, {"before any reading: success is False and the message says 'no reading'"},
+                 id="no-reading-is-fine"),
+    pytest.param(BatteryOnTheWrongTopic, {"it subscribes to /battery_level"}, id="wrong-topic"),
+    pytest.param(BatteryWithDecimals, {"after a reading of 57%: the message contains '57%'",
+                                       "after a reading of 12.4%: the message contains '12%'",
+                                       "after a reading of 20%: the message contains '20%'"}, id="decimals"),
+    pytest.param(BatteryWithSuccessInverted, {AFTER_57, AFTER_12, AFTER_20}, id="success-inverted"),
+]
+
+
+def test_battery_checker_accepts_the_reference_and_every_criterion_has_a_wrong_solution(rt):
+    report = check_battery_server(BatteryMonitor, rt)
+    assert report.passed, report.summary()
+    names = {c.name for c in report.criteria}
+    assert {AFTER_57, AFTER_12, AFTER_20} <= names
+    assert names <= _covered(BATTERY_WRONG)
+
+
+@pytest.mark.parametrize("wrong, failing", BATTERY_WRONG)
+def test_battery_checker_fails_each_criterion_on_a_wrong_solution(rt, wrong, failing):
+    report = check_battery_server(wrong, rt)
+    assert not report.passed
+    assert failing <= _failed(report), report.summary()
+
+
+# ---------------------------------------------------------------------- 04.2: a service that calls a service
+class RelayNeedsABackendName(SumRelay):
+    """Wrong: a constructor argument the checker does not give."""
+
+    def __init__(self, backend):
+        super().__init__()
+
+
+class RelayCalledRelay(SumRelay):
+    """Wrong: another node name."""
+
+    def __init__(self):
+        Node.__init__(self, "relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints",
+                                          callback_group=MutuallyExclusiveCallbackGroup())
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request)
+
+
+class RelayOfTheTextbookType(SumRelay):
+    """Wrong: offers add_via_relay with example_interfaces' AddTwoInts, not the course's."""
+
+    def __init__(self):
+        from example_interfaces.srv import AddTwoInts as TextbookAddTwoInts
+
+        Node.__init__(self, "sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints",
+                                          callback_group=MutuallyExclusiveCallbackGroup())
+        self.service = self.create_service(TextbookAddTwoInts, "add_via_relay", self.on_request)
+
+
+class RelayWithSensorQos(SumRelay):
+    """Wrong: offers add_via_relay with the sensor-data QoS profile, which no default client matches."""
+
+    def __init__(self):
+        Node.__init__(self, "sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints",
+                                          callback_group=MutuallyExclusiveCallbackGroup())
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request,
+                                           qos_profile=qos_profile_sensor_data)
+
+
+class RelayToAMisspelledBackend(SumRelay):
+    """Wrong: the client asks add_two_int, which nobody offers."""
+
+    def __init__(self):
+        Node.__init__(self, "sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_int",
+                                          callback_group=MutuallyExclusiveCallbackGroup())
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request)
+
+
+class BlockingRelay(Node):
+    """Wrong: relays with a blocking call() inside the service callback."""
+
+    def __init__(self):
+        super().__init__("sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints")
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request)
+
+    def on_request(self, request, response):
+        response.sum = self.backend.call(AddTwoInts.Request(a=request.a, b=request.b)).sum
+        return response
+
+
+class RelayThatForgetsTheSum(SumRelay):
+    """Wrong: awaits the backend's answer and never copies it into the response."""
+
+    async def on_request(self, request, response):
+        await self.backend.call_async(AddTwoInts.Request(a=request.a, b=request.b))
+        return response
+
+
+class LocalAdder(SumRelay):
+    """Wrong: adds locally instead of asking the backend."""
+
+    async def on_request(self, request, response):
+        response.sum = request.a + request.b
+        return response
+
+
+class RelayThatRemembers(SumRelay):
+    """Wrong: keeps the backend's first answer on self and answers every later request with it."""
+
+    def __init__(self):
+        super().__init__()
+        self.answer = None
+
+    async def on_request(self, request, response):
+        if self.answer is None:
+            self.answer = await self.backend.call_async(AddTwoInts.Request(a=request.a, b=request.b))
+        response.sum = self.answer.sum
+        return response
+
+
+class RelayWithoutAwait(SumRelay):
+    """Wrong: takes the future for the answer; reading .sum from it raises."""
+
+    def on_request(self, request, response):
+        answer = self.backend.call_async(AddTwoInts.Request(a=request.a, b=request.b))
+        response.sum = answer.sum
+        return response
+
+
+RELAY_WRONG = [
+    pytest.param(RelayNeedsABackendName, {"the node can be created"}, id="constructor-argument"),
+    pytest.param(RelayCalledRelay, {"the node is called sum_relay"}, id="name"),
+    pytest.param(RelayOfTheTextbookType, {"it offers add_via_relay of type course_interfaces/srv/AddTwoInts"},
+                 id="type"),
+    pytest.param(RelayWithSensorQos, {"the checker's client finds the service"}, id="sensor-qos"),
+    pytest.param(RelayToAMisspelledBackend, {"it has a client of add_two_ints that found the backend"},
+                 id="backend-name"),
+    pytest.param(BlockingRelay, {"it answers 2 + 3 within 2 s"}, id="blocking-call"),
+    pytest.param(RelayThatForgetsTheSum, {"it answers 2 + 3 = 5"}, id="forgets-the-sum"),
+    pytest.param(LocalAdder, {"it asked the add_two_ints backend for the sum"}, id="adds-locally"),
+    pytest.param(RelayThatRemembers, {"it answers three requests sent at once"}, id="remembers"),
+    pytest.param(RelayWithoutAwait, {"its callbacks raised no exceptions"}, id="no-await"),
+]
+
+
+def test_relay_checker_accepts_the_reference_and_every_criterion_has_a_wrong_solution(rt):
+    report = check_relay_server(SumRelay, rt)
+    assert report.passed, report.summary()
+    assert {c.name for c in report.criteria} <= _covered(RELAY_WRONG)
+
+
+@pytest.mark.parametrize("wrong, failing", RELAY_WRONG)
+def test_relay_checker_fails_each_criterion_on_a_wrong_solution(rt, wrong, failing):
+    report = check_relay_server(wrong, rt)
+    assert not report.passed
+    assert failing <= _failed(report), report.summary()
+
+
+def test_relay_checker_reports_the_deadlock_in_words(rt):
+    report = check_relay_server(BlockingRelay, rt)
+    assert any("deadlock" in c.detail for c in report.criteria if not c.passed)
+    assert not any("call_async" in c.hint or "async def" in c.hint for c in report.criteria), (
+        "hints point to the text; they do not write the fix")
