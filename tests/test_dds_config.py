@@ -100,3 +100,25 @@ def test_a_short_lease_profile_is_private_loopback_only_and_holds_the_lease(rt, 
 def test_a_lease_outside_its_range_is_named(lease):
     with pytest.raises(dds_config.CourseError, match=r"lease_s must be 0.5..60 seconds"):
         dds_config.short_lease_env("/nonexistent", lease)
+
+
+@pytest.mark.parametrize("lease", [0.1, 61, "2", True])
+def test_a_discovery_server_lease_outside_its_range_is_named(lease):
+    with pytest.raises(dds_config.CourseError, match=r"lease_s must be 0.5..60 seconds"):
+        dds_config.discovery_server_profile("/nonexistent", lease)
+
+
+def test_the_discovery_server_profile_keeps_it_a_server_with_its_lease(tmp_path):
+    """fast-discovery-server -x FILE makes the file's default participant the server: it must say SERVER
+    (the CLI sets it only without -x) and carry the lease."""
+    import xml.etree.ElementTree as ET
+
+    path = dds_config.discovery_server_profile(str(tmp_path), 1.5)
+    ns = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+    participant = ET.parse(path).getroot().find("f:participant", ns)
+    assert participant.get("is_default_profile") == "true"
+    config = participant.find("f:rtps/f:builtin/f:discovery_config", ns)
+    assert config.findtext("f:discoveryProtocol", namespaces=ns) == "SERVER"
+    lease = config.find("f:leaseDuration", ns)
+    found = (lease.findtext("f:sec", namespaces=ns), lease.findtext("f:nanosec", namespaces=ns))
+    assert found == ("1", "500000000")

@@ -21,6 +21,7 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+import threading
 from pathlib import Path
 
 import psutil
@@ -45,7 +46,7 @@ AS_USER = textwrap.dedent("""
     from course_helpers import get_runtime
     from course_helpers.core import netns
     from course_helpers.chapters.ch08b_lab import ExperimentConfig, run_experiment
-    from course_helpers.chapters.ch07_dds.two_machines import two_machines
+    from course_helpers.chapters.ch07_dds.machines import two_machines
 
     rt = get_runtime()
     out = {"uid": os.getuid(), "rootless": netns.rootless(), "reason": netns.unavailable_reason()}
@@ -143,7 +144,7 @@ NOT_PERMITTED = textwrap.dedent("""
     from course_helpers.core.errors import CourseError
     from course_helpers.chapters.ch08b_lab import ExperimentConfig, preset, run_experiment
     from course_helpers.chapters.ch08b_lab.panel import QoSLab
-    from course_helpers.chapters.ch07_dds.two_machines import two_machines
+    from course_helpers.chapters.ch07_dds.machines import two_machines
 
     out = {"reason": netns.unavailable_reason()}
     for name, call in (("lab", lambda: run_experiment(preset("Wi-Fi link, 10 % loss")[0])),
@@ -275,26 +276,76 @@ needs_ros1 = pytest.mark.skipif(ros1_module.ros1_unavailable_reason() is not Non
 
 @needs_ros1
 def test_ros1_and_ros2_failure_experiment(rt):
-    from course_helpers.chapters.ch01_ros1 import (
-        ros1_failure_experiment,
-        ros2_failure_experiment,
-        side_by_side,
-    )
+    """As chapter 01 runs it: a master and a talking pair started first, then both experiments at once."""
+    from course_helpers.chapters import ch01_ros1 as ros1
 
-    one = ros1_failure_experiment()
+    side = ros1.start_ros2_side(rt)
+    master = ros1.start_master()
+    listener = ros1.start_talking_pair(master)
+    assert master.system_state()["publishers"]["/chatter"] == ["/talker"]
+    assert side.known_before() == ["/first_node", "/ros2_listener", "/ros2_talker"]
+    run = ros1.start_failure_experiment(master, listener)
+    two = ros1.ros2_failure_experiment(rt, side)
+    one = run.result(timeout=120)
     assert one.known_before == ["/listener", "/talker"]
     assert one.kept_talking  # TCPROS is peer to peer: the master is not on the data path
-    assert not one.newcomer_heard and one.newcomer_window_s >= 2.0  # nobody to ask where the talker is
-    assert "/talker" not in one.restarted_knows and "/listener" not in one.restarted_knows
-    two = ros2_failure_experiment(rt)
-    assert two.kept_talking and two.newcomer_heard
-    assert set(two.restarted_knows) == {"/ros2_talker", "/ros2_listener", "/ros2_newcomer"}
-    table = side_by_side(one, two)
-    assert "no, nothing in" in table and "yes, after" in table
-    assert not ros1_module.processes.running(ros1_module.GROUP)  # the master and the rospy nodes stopped
+    assert not one.newcomer_heard and one.newcomer_window_s >= 1.0  # nobody to ask where the talker is
+    assert one.restarted_knows == ["/newcomer"]  # it registered with the new master; the pair never did
+    assert two.kept_talking and two.newcomer_heard and two.newcomer_s <= two.newcomer_window_s
+    assert two.known_before == ["/first_node", "/ros2_listener", "/ros2_talker"]
+    assert two.restarted_knows == ["/ros2_listener", "/ros2_talker"]
+    table = ros1.side_by_side(one, two)
+    assert "no, nothing in" in table and "yes, after" in table and "known before the kill" in table
+    # the result comes first; its thread then stops the master and the rospy nodes
+    assert poll_until(lambda: not ros1_module.processes.running(ros1_module.GROUP), 15)
     assert not any(label.startswith("failure_") for label in rt.children())
+    assert ros1.ros1_failure_experiment().restarted_knows == ["/newcomer"]  # on its own, and after a run
+    assert ros1.ros2_failure_experiment(rt).restarted_knows == ["/ros2_listener", "/ros2_talker"]
+
+
+@needs_ros1
+def test_the_background_run_stops_its_own_processes_not_their_labels():
+    """A re-run cell may start a new master while the last run still stops its processes (rospy takes
+    about a second to exit): the run must stop the processes it used, never whatever has their label."""
+    from course_helpers.chapters import ch01_ros1 as ros1
+
+    processes = ros1_module.processes
+    run = ros1.start_failure_experiment()
+    run.result(timeout=120)
+    old = dict(processes.running(ros1_module.GROUP))
+    assert old, "the run's processes were already stopped: this test cannot see the difference"
+    newcomer = processes.start(ros1_module.MASTER_LABEL, processes.program_argv("sleep", "60"),
+                               group=ros1_module.GROUP, channel=False)  # what a re-run cell's master would be
+    try:
+        assert poll_until(lambda: not any(child.alive for child in old.values() if child is not newcomer), 15)
+        assert poll_until(lambda: not any(t.name == "ros1-failure" for t in threading.enumerate()), 15)
+        assert newcomer.alive and processes.get(ros1_module.MASTER_LABEL, ros1_module.GROUP) is newcomer
+    finally:
+        newcomer.stop()
+
+
+def test_the_failure_table_shows_what_every_result_measured():
+    from course_helpers.viz.failure_table import FailureResult, side_by_side
+
+    common = dict(killed="it", first_message_s=1.0, kept_talking=True, kept_talking_s=0.25,
+                  newcomer_heard=False, newcomer_s=None, newcomer_window_s=2.0, after_restart="knows /x")
+    asked = FailureResult(system="asked", known_before=["/a", "/b"], **common)
+    not_asked = FailureResult(system="not asked", **common)
+    assert "known before the kill" in side_by_side(asked) and "/a, /b" in side_by_side(asked)
+    assert "known before the kill" not in side_by_side(asked, not_asked)  # a row only where all asked
+    assert "no, nothing in 2.00 s" in side_by_side(not_asked)
     with pytest.raises(CourseError):
         side_by_side()
+    with pytest.raises(CourseError):
+        side_by_side("ROS 1")
+
+
+def test_the_stays_apart_window_follows_the_measured_discovery():
+    from course_helpers.chapters.ch07_dds.machines import MIN_WINDOW_S, NOBODY_MET_WINDOW_S, watch_window
+
+    assert watch_window([0.02, 0.3]) == pytest.approx(3.0)  # ten times the slowest pair that met
+    assert watch_window([0.01]) == MIN_WINDOW_S
+    assert watch_window([]) == NOBODY_MET_WINDOW_S
 
 
 KERNEL = textwrap.dedent("""
@@ -361,12 +412,45 @@ def _net_ns_of(pid: int) -> str:
         return ""
 
 
-def test_a_discovery_server_is_a_master_again_until_it_comes_back(rt):
+def test_a_discovery_server_is_a_centre_for_discovery_only(rt):
     """Chapter 07's return to the failure experiment: kill the discovery server under a talking pair."""
-    from course_helpers.chapters.ch07_dds.server_failure import LABELS, server_failure_experiment
+    from course_helpers.chapters.ch07_dds import ReportingListener, start_discovery_server
+    from course_helpers.chapters.ch07_dds.server_failure import NEWCOMER, server_failure_experiment
+    from course_helpers.nodes import make_talker
 
-    result = server_failure_experiment(rt)
+    server = start_discovery_server(lease_s=1.0)  # its clients drop it 1 s after a crash
+    env = server.client_env()
+    talker = rt.spawn("srv_talker", make_talker, params={"name": "srv_talker", "rate_hz": 20.0}, env=env)
+    listener = rt.spawn("srv_listener", ReportingListener, params={"name": "srv_listener"}, env=env)
+    listener.wait_for_report("heard", 20, "the first client to hear the talker")
+    result = server_failure_experiment(rt, server, talker, listener)
     assert result.kept_talking  # data never went through the server
-    assert not result.newcomer_heard_without_server and result.window_s >= 2.0  # nobody to ask
-    assert result.newcomer_after_restart_s is not None, result  # the clients called the new server
-    assert not set(LABELS) & set(rt.children())
+    assert not result.newcomer_heard and result.newcomer_window_s >= 1.0  # nobody to ask
+    # restarted once every client had dropped the dead one, the server learns everything again
+    assert result.restart_s is not None, result
+    assert result.after_restart == f"the newcomer heard the talker {result.restart_s:.2f} s after it"
+    assert not {"srv_talker", "srv_listener", NEWCOMER} & set(rt.children())
+    assert not server.alive and not ros1_module.processes.running("server")
+    with pytest.raises(CourseError, match="needs a running discovery server"):
+        server_failure_experiment(rt, server, talker, listener)
+
+
+def test_a_discovery_server_with_the_default_lease_is_refused_before_anything_is_killed(rt):
+    """Clients hold a dead server for its lease (20 s by default): the experiment says so, kills nothing."""
+    from course_helpers.chapters.ch07_dds import ReportingListener, start_discovery_server
+    from course_helpers.chapters.ch07_dds.server_failure import server_failure_experiment
+    from course_helpers.nodes import make_talker
+
+    server = start_discovery_server()
+    try:
+        env = server.client_env()
+        talker = rt.spawn("lease_talker", make_talker, params={"name": "lease_talker", "rate_hz": 20.0},
+                          env=env)
+        listener = rt.spawn("lease_listener", ReportingListener, params={"name": "lease_listener"}, env=env)
+        listener.wait_for_report("heard", 20, "the listener to hear the talker")
+        with pytest.raises(CourseError, match=r"lease of at most 5 s.*this one has 20 s"):
+            server_failure_experiment(rt, server, talker, listener)
+        assert server.alive and talker.alive and listener.alive
+    finally:
+        rt.stop_children(["lease_talker", "lease_listener"])
+        server.stop()

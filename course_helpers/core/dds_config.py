@@ -46,6 +46,11 @@ for comparisons (chapter 07, the benchmark).
 **A short lease.** ``short_lease_env(directory, lease_s)`` is the course's profile for this range with
 another lease: peers drop a crashed child that long after its last announcement (chapter 01).
 
+**A discovery server's lease.** ``fast-discovery-server`` ignores ``FASTRTPS_DEFAULT_PROFILES_FILE``
+(it starts from a default-built participant QoS) and reads a profile only when given ``-x FILE``.
+``discovery_server_profile(directory, lease_s)`` writes one that keeps the server a server and sets its
+lease and announcements (chapter 07 kills a server and needs its clients to drop it soon).
+
 Profiles are written into a folder private to the process (``processes.log_dir()``), never to a
 shared, predictable path that another user could create first.
 
@@ -80,6 +85,7 @@ LOCALHOST_PROFILE = "course_localhost.xml"  # shared memory + UDP on 127.0.0.1, 
 TIMING_PROFILE = "course_timing.xml"  # tuned timing only, for ranges other than LOCALHOST
 UDP_PROFILE = "course_udp_loopback.xml"  # UDP on 127.0.0.1 only, tuned timing
 DEFAULTS_PROFILE = "fastdds_default_discovery.xml"  # Fast DDS's timing, for comparisons
+SERVER_PROFILE_STEM = "course_discovery_server_lease"  # + _<ms>ms.xml
 LEASE_PROFILE_STEMS = ("course_localhost_lease", "course_timing_lease")  # + _<ms>ms.xml, by range
 _CHOSEN_BY_RANGE = (LOCALHOST_PROFILE, TIMING_PROFILE)  # picked per process, may be replaced
 MIN_LEASE_S, MAX_LEASE_S = 0.5, 60.0  # s; a lease must be several announcements long
@@ -243,6 +249,30 @@ def udp_loopback_env(directory: str) -> dict[str, str]:
     return {RANGE_ENV: "LOCALHOST", PROFILE_ENV: path}
 
 
+def _check_lease(lease_s) -> None:
+    if isinstance(lease_s, bool) or not isinstance(lease_s, (int, float)) or not (
+            MIN_LEASE_S <= lease_s <= MAX_LEASE_S):
+        raise CourseError(f"lease_s must be {MIN_LEASE_S:g}..{MAX_LEASE_S:g} seconds, got {lease_s!r}")
+
+
+def discovery_server_profile(directory: str, lease_s: float) -> str:
+    """Write the profile for ``fast-discovery-server -x`` (a SERVER announcing a lease of ``lease_s``
+    every ``ANNOUNCEMENT_S``) into ``directory`` and return its path. Addresses come from the command
+    line (``-l``, ``-p``), which takes precedence over the file."""
+    _check_lease(lease_s)
+    text = "\n".join([
+        '<?xml version="1.0" encoding="UTF-8" ?>',
+        '<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">',
+        '  <participant profile_name="course_discovery_server" is_default_profile="true">',
+        "    <rtps>", "      <builtin>", "        <discovery_config>",
+        "          <discoveryProtocol>SERVER</discoveryProtocol>",
+        f"          {_duration('leaseDuration', lease_s)}",
+        f"          {_duration('leaseAnnouncement', ANNOUNCEMENT_S)}",
+        "        </discovery_config>", "      </builtin>", "    </rtps>", "  </participant>",
+        "</profiles>"]) + "\n"
+    return write_profile(directory, f"{SERVER_PROFILE_STEM}_{round(lease_s * 1000)}ms.xml", text)
+
+
 def short_lease_env(directory: str, lease_s: float) -> dict[str, str]:
     """Environment for a child whose participant announces a lease of ``lease_s`` seconds.
 
@@ -250,9 +280,7 @@ def short_lease_env(directory: str, lease_s: float) -> dict[str, str]:
     Everything else is the course's profile for this process's discovery range. Writes the profile
     into ``directory`` and returns the variables to pass as ``env=`` to ``rt.spawn``.
     """
-    if isinstance(lease_s, bool) or not isinstance(lease_s, (int, float)) or not (
-            MIN_LEASE_S <= lease_s <= MAX_LEASE_S):
-        raise CourseError(f"lease_s must be {MIN_LEASE_S:g}..{MAX_LEASE_S:g} seconds, got {lease_s!r}")
+    _check_lease(lease_s)
     localhost = _is_localhost_range()
     stem = LEASE_PROFILE_STEMS[0] if localhost else LEASE_PROFILE_STEMS[1]
     text = profile_xml(("SHM", "UDPv4") if localhost else (), lease_s=lease_s)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 import shutil
 import sys
+import tempfile
 import threading
 
 from course_helpers.core import processes
@@ -81,6 +82,19 @@ class NetworkNamespace:
             raise CourseError(f"`{' '.join(argv)}` failed in network namespace {self.label!r} "
                               f"(exit {code}): {output.strip()}")
         return code, output
+
+    def ip_batch(self, commands: list[str]) -> None:
+        """Run several ``ip`` commands (without the ``ip``) inside, as one process: ``ip -batch``.
+
+        Raises CourseError naming the command that failed, with ip's output.
+        """
+        handle, path = tempfile.mkstemp(prefix="ip-batch-", suffix=".txt", dir=processes.log_dir())
+        with os.fdopen(handle, "w", encoding="utf-8") as batch:
+            batch.write("\n".join(commands) + "\n")
+        try:
+            self.run("ip", "-batch", path)
+        finally:
+            os.unlink(path)
 
     def start(self, label: str, argv: list[str], *, group: str = "node", env: dict | None = None,
               **options) -> processes.ChildProcess:
@@ -168,11 +182,12 @@ def connect(a: NetworkNamespace, b: NetworkNamespace, address_a: str, address_b:
     Returns the interface names (``veth_a``, ``veth_b``). Multicast is routed over the link, as on a
     LAN, so that DDS's multicast discovery can use it.
     """
-    a.run("ip", "link", "add", "veth_a", "type", "veth", "peer", "name", "veth_b", "netns", str(b.pid))
-    for side, name, address in ((a, "veth_a", address_a), (b, "veth_b", address_b)):
-        side.run("ip", "addr", "add", f"{address}/{prefix}", "dev", name)
-        side.run("ip", "link", "set", name, "up", "multicast", "on")
-        side.run("ip", "route", "add", "224.0.0.0/4", "dev", name)
+    def configure(name: str, address: str) -> list[str]:
+        return [f"addr add {address}/{prefix} dev {name}", f"link set {name} up multicast on",
+                f"route add 224.0.0.0/4 dev {name}"]
+
+    a.ip_batch([f"link add veth_a type veth peer name veth_b netns {b.pid}", *configure("veth_a", address_a)])
+    b.ip_batch(configure("veth_b", address_b))
     return "veth_a", "veth_b"
 
 

@@ -8,46 +8,36 @@ ROS 1 (:func:`ros1_failure_experiment`): a master, a rospy talker and listener. 
 
 ROS 2 (:func:`ros2_failure_experiment`): a node (where the master would be), a talker and a
 listener, each in its own process. Kill that first node, then ask the same three questions: the pair
-goes on, a new listener finds the talker, and a restarted node sees every other one, because
-discovery has no centre.
+goes on, a new listener finds the talker, and the killed node, started again, sees every other one,
+because discovery has no centre.
 
-Each returns a :class:`FailureResult` with what was measured; :func:`side_by_side` puts two in a table.
+Each returns a :class:`~course_helpers.viz.failure_table.FailureResult` with what was measured.
+:func:`start_failure_experiment` runs the ROS 1 one in a thread of its own, so that another
+experiment can run meanwhile (chapter 01's ROS 2, chapter 07's discovery server).
 """
 
 from __future__ import annotations
 
+import threading
 import time
-from dataclasses import dataclass, field
+from concurrent.futures import Future
 
 from course_helpers.chapters.ch01_ros1.graph_watcher import GraphWatcher
-from course_helpers.chapters.ch01_ros1.ros1 import start_master, start_rospy, stop_ros1
-from course_helpers.core.errors import CourseError
-from course_helpers.core.waiting import poll_until, wait_until
+from course_helpers.chapters.ch01_ros1.ros1 import GROUP, Ros1Master, start_master, start_rospy
+from course_helpers.core import processes
+from course_helpers.core.domains import reserve_spare_domain
+from course_helpers.core.waiting import poll_until
 from course_helpers.nodes.chatter import Listener, make_talker
+from course_helpers.viz.failure_table import KEEP_TALKING_MESSAGES, FailureResult, names, seconds
 
-RATE_HZ = 10.0  # the talker's rate, both systems
-KEEP_TALKING_MESSAGES = 5  # "the pair keeps talking" = this many more messages after the kill
+RATE_HZ = 20.0  # the talker's rate, both systems
 KEEP_TALKING_TIMEOUT_S = 5.0
-MIN_WINDOW_S = 2.0  # a newcomer gets at least this long (and twice what the first listener needed)
+MIN_WINDOW_S = 1.0  # a newcomer gets twice what the first listener needed, and at least this long
+REGISTER_WAIT_S = 5.0  # at most this long, a restarted master is watched for the newcomer to register
 START_TIMEOUT_S = 20.0
 
-
-@dataclass
-class FailureResult:
-    """What one failure experiment measured (times in seconds)."""
-
-    system: str  # 'ROS 1' or 'ROS 2'
-    killed: str  # what was killed
-    first_message_s: float  # the first listener: from its start to its first message
-    known_before: list[str]  # who the master (ROS 1) or the graph (ROS 2) knew before the kill
-    kept_talking: bool  # the pair exchanged KEEP_TALKING_MESSAGES more messages after the kill
-    kept_talking_s: float | None  # ... within this long
-    newcomer_heard: bool  # a listener started after the kill heard the talker
-    newcomer_s: float | None  # from its start to its first message (None: nothing heard)
-    newcomer_window_s: float  # how long the newcomer was given
-    restarted_knows: list[str]  # what the restarted master / node knows of the others
-    restarted_s: float  # from the restart until that was known
-    notes: list[str] = field(default_factory=list)
+_background_lock = threading.Lock()
+_background: list[threading.Thread] = []
 
 
 def _heard(child) -> int:
@@ -60,112 +50,183 @@ def _keeps_talking(listener) -> tuple[bool, float | None]:
     return ok, (time.monotonic() - started) if ok else None
 
 
-def _first_message(child, window_s: float) -> float | None:
-    started = time.monotonic()
-    if poll_until(lambda: _heard(child) > 0 or not child.alive, window_s) and _heard(child):
-        return time.monotonic() - started
-    return None
+def _first_heard_s(child) -> float | None:
+    """From the child's start to its first 'heard' report (its own clock: the machine's monotonic one)."""
+    stamps = child.channel.stamped("heard") if child.channel is not None else []
+    return stamps[0][0] - child.started if stamps else None
 
 
-def ros1_failure_experiment(topic: str = "/chatter") -> FailureResult:
-    """Kill a live ROS 1 master under a talking pair (see the module docstring); stops everything after."""
-    labels = ["talker", "listener", "newcomer"]
-    master = start_master()
+def _window(first_s: float) -> float:
+    return max(MIN_WINDOW_S, 2 * first_s)
+
+
+def _newcomer_hears(child, window_s: float) -> float | None:
+    """Seconds from the child's start to its first message, if that came within ``window_s``; else None."""
+    poll_until(lambda: _heard(child) > 0 or not child.alive, child.started + window_s - time.monotonic())
+    heard = _first_heard_s(child)
+    return heard if heard is not None and heard <= window_s else None
+
+
+def start_talking_pair(master: Ros1Master, topic: str = "/chatter"):
+    """A rospy talker (``RATE_HZ``) and listener on ``master``; returns the listener once it has heard."""
+    start_rospy("talker", "talker", master, topic, RATE_HZ)
+    listener = start_rospy("listener", "listener", master, topic)
+    listener.wait_for_report("heard", START_TIMEOUT_S, "the rospy listener's first message")
+    return listener
+
+
+def ros1_failure_experiment(master: Ros1Master | None = None, listener=None,
+                            topic: str = "/chatter") -> FailureResult:
+    """Kill a live ROS 1 master under a talking pair (see the module docstring); stops everything after.
+
+    Args:
+        master, listener: a running master and the rospy listener (label 'listener') that has heard
+            its talker (label 'talker'), as chapter 01's cells start them. None, or a master or
+            listener that is no longer running (a re-run cell), starts both here.
+    """
+    used: list[processes.ChildProcess] = []
     try:
-        start_rospy("talker", "talker", master, topic, RATE_HZ)
-        listener = start_rospy("listener", "listener", master, topic)
-        started = time.monotonic()
-        listener.wait_for_report("heard", START_TIMEOUT_S, "the ROS 1 listener's first message")
-        first = time.monotonic() - started
-        known_before = master.nodes()
-        master.kill()
-        kept, kept_s = _keeps_talking(listener)
-        window = max(MIN_WINDOW_S, 2 * first)
-        newcomer = start_rospy("newcomer", "listener", master, topic)
-        newcomer_s = _first_message(newcomer, window)
-        restarted_at = time.monotonic()
-        master = start_master(master.port)  # the same address: every node still knows it
-        # the newcomer was still knocking (rospy retries every 0.2 s): give it time to get in
-        poll_until(lambda: "/newcomer" in master.nodes(), 2.0, period=0.05)
-        return FailureResult(
-            system="ROS 1", killed="the master (rosmaster, SIGKILL)", first_message_s=first,
-            known_before=known_before, kept_talking=kept, kept_talking_s=kept_s,
-            newcomer_heard=newcomer_s is not None, newcomer_s=newcomer_s, newcomer_window_s=window,
-            restarted_knows=master.nodes(), restarted_s=time.monotonic() - restarted_at,
-            notes=["the newcomer's rospy.init_node waited for a master, and registered with the new one"])
+        return _measure_ros1(used, master, listener, topic)
     finally:
-        stop_ros1(labels)
-        master.stop()
+        processes.stop_together(used)
 
 
-def ros2_failure_experiment(rt, topic: str = "failure_chatter") -> FailureResult:
+def _measure_ros1(used: list, master, listener, topic: str) -> FailureResult:
+    """The experiment itself. Every process it uses goes into ``used``, to be stopped after: these very
+    processes, never whichever process has their label by then (a re-run cell may have started new ones)."""
+    if master is None or listener is None or not (master.alive and listener.alive):
+        master = start_master()
+        used.append(master.child)
+        listener = start_talking_pair(master, topic)
+    used += [master.child, listener, *filter(None, [processes.get("talker", GROUP)])]
+    listener.wait_for_report("heard", START_TIMEOUT_S, "the rospy listener's first message")
+    first = _first_heard_s(listener)
+    known_before = master.nodes()
+    master.kill()
+    kept, kept_s = _keeps_talking(listener)
+    window = _window(first)
+    newcomer = start_rospy("newcomer", "listener", master, topic)
+    used.append(newcomer)
+    newcomer_s = _newcomer_hears(newcomer, window)
+    restarted_at = time.monotonic()
+    master = start_master(master.port)  # the same address: every node still knows it
+    used.append(master.child)
+    # the newcomer was still knocking (rospy retries): its registration shows the new master works
+    poll_until(lambda: "/newcomer" in master.nodes(), REGISTER_WAIT_S, period=0.05)
+    knows, restart_s = master.nodes(), time.monotonic() - restarted_at
+    return FailureResult(
+        system="ROS 1", killed="the master (rosmaster, SIGKILL)", first_message_s=first,
+        kept_talking=kept, kept_talking_s=kept_s, newcomer_heard=newcomer_s is not None,
+        newcomer_s=newcomer_s, newcomer_window_s=window,
+        after_restart=f"the new master knows {names(knows)}", known_before=known_before,
+        restarted_knows=knows, restart_s=restart_s,
+        notes=["the newcomer's rospy registered with the new master as soon as it answered"])
+
+
+def start_failure_experiment(master: Ros1Master | None = None, listener=None,
+                             topic: str = "/chatter") -> Future:
+    """Start :func:`ros1_failure_experiment` in a thread of its own and return at once.
+
+    ``.result()`` of the returned Future gives the :class:`FailureResult` (or raises what the
+    experiment raised) as soon as it is measured; the thread then stops the ROS 1 processes (rospy
+    takes about a second to exit). A run started earlier is finished first, stops included, so a
+    re-run cell never has two.
+    """
+    future: Future = Future()
+
+    def run() -> None:
+        used: list[processes.ChildProcess] = []
+        try:
+            future.set_result(_measure_ros1(used, master, listener, topic))
+        except BaseException as error:  # handed to whoever asks for the result
+            future.set_exception(error)
+        finally:
+            processes.stop_together(used)
+
+    with _background_lock:
+        for earlier in _background:
+            earlier.join()
+        _background.clear()
+        thread = threading.Thread(target=run, name="ros1-failure", daemon=True)
+        _background.append(thread)
+        thread.start()
+    return future
+
+
+class Ros2Side:
+    """ROS 2's side before the kill: a first node (a graph watcher), a talker and a listener (children).
+
+    They run in the kernel's spare domain: the killed node, which its peers list until its lease runs
+    out, never shows in the kernel's graph.
+    """
+
+    LABELS = ("failure_first", "failure_talker", "failure_listener")
+    FIRST, TALKER, LISTENER = "/first_node", "/ros2_talker", "/ros2_listener"
+
+    def __init__(self, rt, topic: str = "failure_chatter"):
+        self.rt, self.topic = rt, topic
+        self.env = {"ROS_DOMAIN_ID": str(reserve_spare_domain())}
+        self.first_node = rt.spawn(self.LABELS[0], GraphWatcher, params={"name": self.FIRST[1:]},
+                                   env=self.env)
+        rt.spawn(self.LABELS[1], make_talker, params={"name": self.TALKER[1:], "topic": topic,
+                                                      "rate_hz": RATE_HZ}, env=self.env)
+        self.listener = rt.spawn(self.LABELS[2], Listener, params={"name": self.LISTENER[1:], "topic": topic,
+                                                                   "report_heard": True}, env=self.env)
+
+    @property
+    def alive(self) -> bool:
+        return all(child.alive for child in (self.first_node, self.listener)) and all(
+            label in self.rt.children() for label in self.LABELS)
+
+    def known_before(self) -> list[str]:
+        """Wait until the pair talks and the first node sees it; who the first node knows, itself too."""
+        self.listener.wait_for_report("heard", START_TIMEOUT_S, "the ROS 2 listener's first message")
+        if not poll_until(lambda: _sees(self.first_node, {self.TALKER, self.LISTENER}), START_TIMEOUT_S):
+            raise self.first_node.failure("it saw the talker and the listener")
+        return sorted({self.FIRST} | set(self.first_node.last("graph")["nodes"]))
+
+
+def _sees(child, wanted: set[str]) -> bool:
+    """True once a GraphWatcher child has reported every node of ``wanted`` (or has ended)."""
+    return wanted <= set((child.last("graph") or {}).get("nodes", [])) or not child.alive
+
+
+def start_ros2_side(rt, topic: str = "failure_chatter") -> Ros2Side:
+    """Start ROS 2's first node, talker and listener (returns at once); see :class:`Ros2Side`."""
+    return Ros2Side(rt, topic)
+
+
+def ros2_failure_experiment(rt, side: Ros2Side | None = None) -> FailureResult:
     """The same experiment on ROS 2, with child processes of ``rt``; stops them at the end.
 
-    The node killed is the one started first, where ROS 1 had its master.
+    ``side``: from :func:`start_ros2_side` (None, or one no longer running, starts one here). The node
+    killed is its first node, where ROS 1 had its master. After the kill it is started again, as a
+    new process under the same name that also listens to the talker: it is the newcomer, and it
+    tells what a restarted node knows.
     """
-    names = {"first": "first_node", "talker": "ros2_talker", "listener": "ros2_listener",
-             "newcomer": "ros2_newcomer"}
-    labels = [f"failure_{role}" for role in names]
+    if side is None or not side.alive:
+        side = start_ros2_side(rt)
+    restarted_label = "failure_restarted"
     try:
-        first_node = rt.spawn("failure_first", GraphWatcher, params={"name": names["first"]},
-                              wait_for=f"/{names['first']}", timeout=START_TIMEOUT_S)
-        rt.spawn("failure_talker", make_talker, params={"name": names["talker"], "topic": topic,
-                                                        "rate_hz": RATE_HZ})
-        started = time.monotonic()
-        listener = rt.spawn("failure_listener", Listener, params={"name": names["listener"], "topic": topic,
-                                                                  "report_heard": True})
-        listener.wait_for_report("heard", START_TIMEOUT_S, "the ROS 2 listener's first message")
-        first = time.monotonic() - started
-        wanted = {f"/{names[role]}" for role in ("first", "talker", "listener")}
-        poll_until(lambda: wanted <= set(rt.graph_nodes()), START_TIMEOUT_S)  # the graph fills in
-        known_before = sorted(wanted & set(rt.graph_nodes()))
-        first_node.kill()
-        kept, kept_s = _keeps_talking(listener)
-        window = max(MIN_WINDOW_S, 2 * first)
-        newcomer = rt.spawn("failure_newcomer", Listener, params={"name": names["newcomer"], "topic": topic,
-                                                                  "report_heard": True})
-        newcomer_s = _first_message(newcomer, window)
-        restarted_at = time.monotonic()
-        restarted = rt.spawn("failure_first", GraphWatcher, params={"name": names["first"]})
-        others = {f"/{names[role]}" for role in ("talker", "listener", "newcomer")}
-        def sees_all() -> bool:
-            return others <= set((restarted.last("graph") or {}).get("nodes", [])) or not restarted.alive
-
-        wait_until(sees_all, START_TIMEOUT_S, "the restarted node to see the others")
-        if not restarted.alive:
-            raise restarted.failure("it saw the graph")
-        knows = sorted(others & set(restarted.last("graph")["nodes"]))
+        known_before = side.known_before()
+        first_s = _first_heard_s(side.listener)
+        side.first_node.kill()
+        kept, kept_s = _keeps_talking(side.listener)
+        window = _window(first_s)
+        restarted = rt.spawn(restarted_label, GraphWatcher,
+                             params={"name": side.FIRST[1:], "topic": side.topic}, env=side.env)
+        newcomer_s = _newcomer_hears(restarted, window)
+        others = {side.TALKER, side.LISTENER}
+        if not poll_until(lambda: _sees(restarted, others), START_TIMEOUT_S) or not restarted.alive:
+            raise restarted.failure("it saw the other nodes")
+        seen_at = next(t for t, data in restarted.channel.stamped("graph") if others <= set(data["nodes"]))
+        knows, restart_s = sorted(others), seen_at - restarted.started
         return FailureResult(
-            system="ROS 2", killed=f"the first node (/{names['first']}, SIGKILL)", first_message_s=first,
-            known_before=known_before, kept_talking=kept, kept_talking_s=kept_s,
-            newcomer_heard=newcomer_s is not None, newcomer_s=newcomer_s, newcomer_window_s=window,
-            restarted_knows=knows, restarted_s=time.monotonic() - restarted_at)
+            system="ROS 2", killed=f"the first node ({side.FIRST}, SIGKILL)", first_message_s=first_s,
+            kept_talking=kept, kept_talking_s=kept_s, newcomer_heard=newcomer_s is not None,
+            newcomer_s=newcomer_s, newcomer_window_s=window,
+            after_restart=f"it saw {names(knows)} after {seconds(restart_s)}", known_before=known_before,
+            restarted_knows=knows, restart_s=restart_s,
+            notes=["the newcomer is the killed node started again: it listens to the talker too"])
     finally:
-        rt.stop_children(labels)
-
-
-def side_by_side(*results: FailureResult) -> str:
-    """A text table of failure experiments, one column per result, from what they measured."""
-    if not results:
-        raise CourseError("side_by_side() needs at least one FailureResult")
-
-    def seconds(value):
-        return "-" if value is None else f"{value:.2f} s"
-
-    rows = [
-        ("killed", [r.killed for r in results]),
-        ("first message at start", [seconds(r.first_message_s) for r in results]),
-        ("known before the kill", [", ".join(r.known_before) or "nobody" for r in results]),
-        ("the pair kept talking", [f"yes, {KEEP_TALKING_MESSAGES} messages in {seconds(r.kept_talking_s)}"
-                                   if r.kept_talking else "no" for r in results]),
-        ("a new listener heard the talker", [f"yes, after {seconds(r.newcomer_s)}" if r.newcomer_heard
-                                             else f"no, nothing in {seconds(r.newcomer_window_s)}"
-                                             for r in results]),
-        ("the restarted one knows", [", ".join(r.restarted_knows) or "nobody" for r in results]),
-    ]
-    width = max(len(label) for label, _ in rows) + 2
-    columns = [max(len(r.system), *(len(values[i]) for _, values in rows)) + 2 for i, r in enumerate(results)]
-    lines = [" " * width + "".join(r.system.ljust(columns[i]) for i, r in enumerate(results))]
-    for label, values in rows:
-        lines.append(label.ljust(width) + "".join(v.ljust(columns[i]) for i, v in enumerate(values)))
-    return "\n".join(line.rstrip() for line in lines)
+        rt.stop_children([*side.LABELS, restarted_label])

@@ -15,6 +15,7 @@ runs its master on a free port of its own, so kernels never share a master.
 
 from __future__ import annotations
 
+import ast
 import os
 import socket
 import threading
@@ -42,6 +43,17 @@ INSTALL = {
     "ubuntu 24.04": "Ubuntu 24.04 has no ROS 1 packages: use a Debian 12 or Ubuntu 22.04 machine "
                     "or container",
 }
+
+MODULES = ("rospy", "rosmaster", "std_msgs.msg")  # what the master and the rospy nodes import
+FIND_MODULES = f"""
+import importlib.util
+def found(name):
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ImportError:  # its package is missing
+        return False
+print([name for name in {MODULES!r} if not found(name)])
+"""
 
 _probe_lock = threading.Lock()
 _probed: dict[str, str | None] = {}
@@ -81,14 +93,13 @@ def ros1_unavailable_reason() -> str | None:
 def _probe(python: str) -> str | None:
     if not os.path.exists(python):
         return f"ROS 1 is not installed ({python} does not exist): {install_hint()}"
-    try:
-        code, output = processes.run([python, "-c", "import rospy, rosmaster, std_msgs.msg"],
-                                     env=_plain_env(), timeout=60)
+    try:  # found, not imported: importing rospy takes half a second, and the master imports it anyway
+        code, output = processes.run([python, "-c", FIND_MODULES], env=_plain_env(), timeout=60)
     except CourseError as error:
         return f"ROS 1 could not be checked with {python}: {error}"
-    if code != 0:
-        missing = output.strip().splitlines()[-1] if output.strip() else f"exit code {code}"
-        return f"ROS 1 is not installed for {python} ({missing}): {install_hint()}"
+    missing = output.strip().splitlines()[-1] if output.strip() else f"exit code {code}"
+    if code != 0 or missing != "[]":
+        return f"ROS 1 is not installed for {python} (missing: {missing}): {install_hint()}"
     return None
 
 
@@ -169,10 +180,11 @@ class Ros1Master:
     def kill(self) -> None:
         """SIGKILL, as a crash or a pulled power cord would end it."""
         self.child.kill()
-        processes.stop([self.child.label], group=GROUP)
+        self.child.stop()
 
     def stop(self) -> None:
-        processes.stop([self.child.label], group=GROUP)
+        """Stop this master (not whichever master now has its label)."""
+        self.child.stop()
 
 
 def start_master(port: int | None = None, label: str = MASTER_LABEL) -> Ros1Master:
@@ -208,6 +220,22 @@ def start_rospy(label: str, role: str, master: Ros1Master, *args: str) -> proces
         raise CourseError(f"role must be one of {sorted(SCRIPTS)}, got {role!r}")
     argv = [ros1_python(), SCRIPTS[role], label, *map(str, args)]
     return processes.start(label, argv, group=GROUP, env=ros1_env(master.uri))
+
+
+def rospy_source(role: str, parts=("Talker", "Listener", "main")) -> str:
+    """The source of ``parts`` (top-level classes and functions) of ``rospy_<role>.py``, read from the file.
+
+    The kernel cannot import rospy (it belongs to the system Python), so the notebook prints the
+    nodes from the very file the ROS 1 child runs.
+    """
+    if role not in SCRIPTS:
+        raise CourseError(f"role must be one of {sorted(SCRIPTS)}, got {role!r}")
+    with open(SCRIPTS[role], encoding="utf-8") as handle:
+        text = handle.read()
+    lines = text.splitlines()
+    found = ["\n".join(lines[node.lineno - 1:node.end_lineno]) for node in ast.parse(text).body
+             if isinstance(node, (ast.ClassDef, ast.FunctionDef)) and node.name in parts]
+    return "\n\n\n".join(found)
 
 
 def stop_ros1(labels) -> None:

@@ -2,8 +2,7 @@
 
 ``python3 rospy_talker.py NAME TOPIC RATE_HZ`` with ``ROS_MASTER_URI`` set. rospy has no node
 class: the process is the node, ``rospy.init_node`` registers it with the master, and a publisher
-sends on a timer. It reports ``ready`` (its name and XML-RPC URI) and ``sent`` (how many so far)
-over the course's process channel.
+sends on a timer. It reports ``ready`` (its name and XML-RPC URI) over the course's process channel.
 """
 
 import sys
@@ -26,7 +25,6 @@ class Talker:
     def tick(self, _event) -> None:
         self.publisher.publish(String(data=f"hello {self.count}"))
         self.count += 1
-        report("sent", count=self.count)
 
 
 def main(argv: list[str]) -> None:

@@ -8,6 +8,9 @@
 * :mod:`.discovery_settings` - discovery with Fast DDS's default announcement period against the course's, and
   what announcing costs;
 * :mod:`.server` - eProsima's discovery server, started and stopped from the notebook;
+* :mod:`.server_failure` - chapter 01's failure experiment with a discovery server where ROS 1 had its master
+  (:func:`side_by_side` prints it beside chapter 01's results);
+* :mod:`.machines` - two network namespaces joined by a veth pair: the discovery range across a link;
 * :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;
 * :mod:`.middleware` - the active and the installed rmw implementations;
 * :mod:`.transports` - one message bounced in one process, over shared memory and over UDP;
@@ -45,6 +48,7 @@ from course_helpers.chapters.ch07_dds.discovery_settings import (
     plot_discovery,
 )
 from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
+from course_helpers.chapters.ch07_dds.machines import LinkResult, link_table, two_machines
 from course_helpers.chapters.ch07_dds.middleware import installed_rmw_implementations, middleware_report
 from course_helpers.chapters.ch07_dds.names import (
     DdsEntity,
@@ -67,6 +71,7 @@ from course_helpers.chapters.ch07_dds.server import (
     start_discovery_server,
     stop_discovery_servers,
 )
+from course_helpers.chapters.ch07_dds.server_failure import server_failure_experiment
 from course_helpers.chapters.ch07_dds.transports import (
     BOUNCE_QOS,
     TRANSPORT_LABELS,
@@ -78,3 +83,4 @@ from course_helpers.chapters.ch07_dds.transports import (
     run_ping,
 )
 from course_helpers.core.domains import nodes_in_domain, reserve_spare_domain
+from course_helpers.viz.failure_table import FailureResult, side_by_side

@@ -12,7 +12,7 @@ import socket
 import sys
 from dataclasses import dataclass
 
-from course_helpers.core import processes
+from course_helpers.core import dds_config, processes
 from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
@@ -45,10 +45,14 @@ def _server_binary() -> str:
 
 @dataclass
 class DiscoveryServer:
-    """A ``fast-discovery-server`` process (a ``ChildProcess``) listening on 127.0.0.1:``port``."""
+    """A ``fast-discovery-server`` process (a ``ChildProcess``) listening on 127.0.0.1:``port``.
+
+    ``lease_s``: the lease it announces; its clients drop it that long after its last announcement.
+    """
 
     port: int
     child: processes.ChildProcess
+    lease_s: float = dds_config.LEASE_S
 
     @property
     def alive(self) -> bool:
@@ -92,12 +96,16 @@ class DiscoveryServer:
         return f"<DiscoveryServer {self.address} {state}>"
 
 
-def start_discovery_server(port: int | None = None, timeout: float = 5.0) -> DiscoveryServer:
+def start_discovery_server(port: int | None = None, timeout: float = 5.0,
+                           lease_s: float = dds_config.LEASE_S) -> DiscoveryServer:
     """Start eProsima's discovery server on 127.0.0.1; a server this kernel started earlier stops first.
 
     Args:
         port: the UDP port, 1024..65535 (a free one if None).
         timeout: seconds to wait until it listens.
+        lease_s: the lease the server announces (Fast DDS's default, 20 s, unless given), 0.5..60 s:
+            its clients drop a crashed server that long after its last announcement. The server
+            reads it from a profile given with ``-x``.
 
     Returns the running :class:`DiscoveryServer`. Raises ``CourseError`` with its output if it
     ends or does not listen within ``timeout``.
@@ -105,10 +113,12 @@ def start_discovery_server(port: int | None = None, timeout: float = 5.0) -> Dis
     port = free_udp_port() if port is None else int(port)
     if not 1024 <= port <= 65535:
         raise CourseError(f"port must be 1024..65535, got {port}")
-    argv = processes.program_argv(_server_binary(), "-i", "0", "-l", "127.0.0.1", "-p", str(port))
+    profile = dds_config.discovery_server_profile(processes.log_dir(), lease_s)
+    argv = processes.program_argv(_server_binary(), "-i", "0", "-l", "127.0.0.1", "-p", str(port),
+                                  "-x", profile)
     child = processes.start(SERVER_LABEL, argv, group=SERVER_GROUP, channel=False,
                             stop_signal=signal.SIGTERM)
-    server = DiscoveryServer(port, child)
+    server = DiscoveryServer(port, child, lease_s)
     if not (poll_until(lambda: server.ready() or not server.alive, timeout) and server.alive):
         server.stop()
         raise CourseError(f"the discovery server did not listen on UDP port {port} within {timeout:g} s. "
