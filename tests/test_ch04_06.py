@@ -142,6 +142,8 @@ def test_round_trip_measurement_shows_publish_does_not_wait(rt):
     assert "latency_echo" not in rt.children()
     with pytest.raises(CourseError):
         trips.median_us("carrier_pigeon")
+    with pytest.raises(CourseError, match="timeout_s"):
+        measure_round_trips(rt, samples=10, timeout_s=0)
 
 
 # ---------------------------------------------------------------------- chapter 05: actions
