@@ -103,12 +103,14 @@ def test_a_busy_callback_delays_a_timer_of_its_thread_only(rt):
     loaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20)
     threaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20, executor="multi",
                                     separate_groups=True)
-    assert len(idle.intervals_s) > 100 and len(loaded.intervals_s) > 100
-    assert abs(statistics_median(idle.intervals_s) - 0.01) < 0.002
     assert not idle.due_while_busy() and not idle.busy
     # one thread: every call that fell due during the 20 ms callback waited for its end (on any machine)
     blocked = loaded.due_while_busy()
     assert len(blocked) >= 5 and all(call.waited_for_it for call in blocked), loaded.busy_summary()
+    # idle, a call starts about when it falls due: in the median, sooner than the calls above, which
+    # waited for the rest of a busy callback (compared within this run: a slow machine slows both)
+    assert idle.percentile_ms(50) < statistics_median([call.wait_ms for call in blocked]), \
+        (idle.summary(), loaded.busy_summary())
     # another thread and group: some such calls started while the busy callback still ran
     assert any(not call.waited_for_it for call in threaded.due_while_busy()), threaded.busy_summary()
 
