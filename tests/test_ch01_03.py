@@ -93,9 +93,12 @@ def test_one_default_group_stalls_even_with_many_threads(rt):
 
 
 def test_separate_callback_groups_with_threads_keep_the_timer_regular(rt):
-    fixed = measure_blocking("multi", separate_groups=True, duration_s=1.5, block_s=0.3)
-    assert fixed.max_gap_s < 0.15, fixed.max_gap_s
-    assert fixed.tick_count > 40
+    block_s = 0.3
+    fixed = measure_blocking("multi", separate_groups=True, duration_s=1.5, block_s=block_s)
+    # no gap as long as a planner call (the signature of waiting for one, as in the tests above) ...
+    assert fixed.max_gap_s < block_s, fixed.max_gap_s
+    # ... and more ticks than a loop that waited for each of the 1.5 s / 0.3 s planner calls could make
+    assert fixed.tick_count > 2 * 1.5 / block_s, fixed.tick_count
 
 
 def test_a_busy_callback_delays_a_timer_of_its_thread_only(rt):
