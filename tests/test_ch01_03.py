@@ -93,9 +93,12 @@ def test_one_default_group_stalls_even_with_many_threads(rt):
 
 
 def test_separate_callback_groups_with_threads_keep_the_timer_regular(rt):
-    fixed = measure_blocking("multi", separate_groups=True, duration_s=1.5, block_s=0.3)
-    assert fixed.max_gap_s < 0.15, fixed.max_gap_s
-    assert fixed.tick_count > 40
+    block_s = 0.3
+    fixed = measure_blocking("multi", separate_groups=True, duration_s=1.5, block_s=block_s)
+    # no gap as long as a planner call (the signature of waiting for one, as in the tests above) ...
+    assert fixed.max_gap_s < block_s, fixed.max_gap_s
+    # ... and more ticks than a loop that waited for each of the 1.5 s / 0.3 s planner calls could make
+    assert fixed.tick_count > 2 * 1.5 / block_s, fixed.tick_count
 
 
 def test_a_busy_callback_delays_a_timer_of_its_thread_only(rt):
@@ -103,14 +106,14 @@ def test_a_busy_callback_delays_a_timer_of_its_thread_only(rt):
     loaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20)
     threaded = measure_timer_jitter(period_s=0.01, duration_s=1.5, heavy_ms=20, executor="multi",
                                     separate_groups=True)
-    # enough calls to judge; the loaded run makes fewer (each 20 ms callback holds the thread), and
-    # how many fewer depends on the machine's speed
-    assert len(idle.intervals_s) > 100 and len(loaded.intervals_s) > 20
-    assert abs(statistics_median(idle.intervals_s) - 0.01) < 0.002
     assert not idle.due_while_busy() and not idle.busy
     # one thread: every call that fell due during the 20 ms callback waited for its end (on any machine)
     blocked = loaded.due_while_busy()
     assert len(blocked) >= 5 and all(call.waited_for_it for call in blocked), loaded.busy_summary()
+    # idle, a call starts about when it falls due: in the median, sooner than the calls above, which
+    # waited for the rest of a busy callback (compared within this run: a slow machine slows both)
+    assert idle.percentile_ms(50) < statistics_median([call.wait_ms for call in blocked]), \
+        (idle.summary(), loaded.busy_summary())
     # another thread and group: some such calls started while the busy callback still ran
     assert any(not call.waited_for_it for call in threaded.due_while_busy()), threaded.busy_summary()
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 
 import pytest
 from course_interfaces.action import Navigate
@@ -142,6 +143,8 @@ def test_round_trip_measurement_shows_publish_does_not_wait(rt):
     assert "latency_echo" not in rt.children()
     with pytest.raises(CourseError):
         trips.median_us("carrier_pigeon")
+    with pytest.raises(CourseError, match="timeout_s"):
+        measure_round_trips(rt, samples=10, timeout_s=0)
 
 
 # ---------------------------------------------------------------------- chapter 05: actions
@@ -235,18 +238,41 @@ def test_rate_tuner_retunes_a_running_node(rt):
     assert tuner.get_rate() == 12.0
 
 
+def test_rate_tuner_rate_is_the_talkers_not_the_bursts_of_a_busy_subscriber():
+    tuner = RateTuner.__new__(RateTuner)  # only the measuring part: no node needed
+    tuner._lock = threading.Lock()
+    # ten messages published 0.1 s apart (10 Hz), taken by a stalled subscriber in two bursts
+    tuner.arrivals = deque([(5.0 + 0.001 * k, 100.0 + 0.1 * k) for k in range(5)]
+                           + [(5.5 + 0.001 * k, 100.5 + 0.1 * k) for k in range(5)])
+    assert tuner._rate_between(4.0, 6.0) == pytest.approx(10.0)
+    assert tuner._rate_between(5.4, 6.0) == pytest.approx(10.0)  # the window picks by arrival
+    assert tuner._rate_between(6.0, 7.0) == 0.0
+
+
 def test_rate_tuner_widget_draws_outside_the_executor_and_stops_with_its_node(rt, monkeypatch):
     from course_helpers.chapters.ch06_parameters import rate_tuner
 
-    monkeypatch.setattr(rate_tuner, "REDRAW_IDLE_S", 0.5)
     rt.add(RateTalker, "talker", parameter_overrides=[Parameter("rate_hz", value=10.0)])
     tuner = RateTuner("/talker", "chatter", rt=rt)
     tuner.widget()
     assert "rate-tuner-plot" in [t.name for t in threading.enumerate()]
-    assert 7.0 < tuner.measure(2.0) < 13.0  # drawing twice meanwhile does not hold up the talker's timer
+    drawn_in = []  # the thread of each redraw from now on
+    draw = tuner._refresh_widgets
+
+    def noting_the_thread():
+        drawn_in.append(threading.current_thread().name)
+        draw()
+
+    monkeypatch.setattr(tuner, "_refresh_widgets", noting_the_thread)
+    assert 7.0 < tuner.measure(2.0) < 13.0  # the talker keeps its rate while the plot is redrawn
+    # the redraws (one a second) ran in the drawing thread, never in the executor thread that runs the
+    # talker's timer (an event, not a time: true however slow the drawing is)
+    assert drawn_in and set(drawn_in) == {"rate-tuner-plot"}, drawn_in
     assert bytes(tuner._widgets[2].value).startswith(b"\x89PNG")
     rt.remove(tuner.node)
-    rt.wait_until(lambda: "rate-tuner-plot" not in [t.name for t in threading.enumerate()], 3.0,
+    # it ends once no redraw was asked for REDRAW_IDLE_S (a redraw is asked every second while the node runs)
+    rt.wait_until(lambda: "rate-tuner-plot" not in [t.name for t in threading.enumerate()],
+                  rate_tuner.REDRAW_IDLE_S + 5.0,
                   "the drawing thread to end after its node was removed")
 
 

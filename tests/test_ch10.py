@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import math
+from collections import deque
+
 import pytest
+from action_msgs.msg import GoalStatus
+from course_interfaces.action import Navigate
 from course_interfaces.msg import EStop
 from course_interfaces.srv import PickItem
+from geometry_msgs.msg import Point
 from rcl_interfaces.srv import SetParameters
+from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -48,6 +55,54 @@ def test_pick_mission_completes(rt, robot):
     assert summary.splitlines()[0] == "mission widget-7@B2: done: delivered widget-7 (progress 100%)"
     assert summary.splitlines()[1:] == [f"  - {step}" for step in mission.steps]
     assert "<li>placed widget-7</li>" in cp.mission_html(mission)
+
+
+class LaggingBase(cp.BaseController):
+    """A base whose wheels apply each velocity command LAG odometry steps late: a busy robot computer,
+    made deterministic (counted in the base's own steps, not in seconds)."""
+
+    LAG = 5  # steps of 50 ms
+
+    def __init__(self, namespace: str = "/laggy"):
+        super().__init__(namespace, home=[0.0, 0.0])
+        self.steps = 0
+        self.pending: deque = deque()  # (step it arrived in, Twist)
+
+    def on_cmd(self, msg) -> None:
+        self.pending.append((self.steps, msg))
+
+    def step(self) -> None:
+        while self.pending and self.pending[0][0] <= self.steps - self.LAG:
+            super().on_cmd(self.pending.popleft()[1])
+        self.steps += 1
+        super().step()
+
+
+def test_a_goal_succeeds_only_once_a_lagging_base_has_stopped_at_the_target(rt):
+    rt.add(cp.SafetyMonitor, "/laggy", console=False)
+    base = rt.add(LaggingBase, "/laggy", console=False)
+    navigator = rt.add(cp.Navigator, "/laggy", console=False)
+    client = ActionClient(rt.graph, Navigate, "/laggy/navigate")
+    try:
+        rt.wait_until(lambda: navigator.pose is not None and not navigator.estop_engaged
+                      and not base.estop_engaged and client.server_is_ready(), 10,
+                      "the lagging base, its navigator and the released e-stop")
+        target = (1.0, 0.5)
+        request = Navigate.Goal(target=Point(x=target[0], y=target[1]))
+        goal = rt.wait_for_future(client.send_goal_async(request), 5, "the goal's acceptance")
+        assert goal.accepted
+        outcome = rt.wait_for_future(goal.get_result_async(), 30, "the navigation result")
+        assert outcome.status == GoalStatus.STATUS_SUCCEEDED
+        # success meant: the base had stopped there. Nothing it was told before moves it on afterwards.
+        where = (base.x, base.y)
+        assert base.vx == base.vy == 0.0 and math.dist(where, target) <= navigator.tolerance, where
+        steps = base.steps
+        rt.wait_until(lambda: base.steps >= steps + 2 * base.LAG, 10, "the base's commands in flight")
+        assert (base.x, base.y) == where, "the base moved on after the navigator reported arrival"
+    finally:
+        rt.call_in_executor(client.destroy)
+        for name in ("navigator", "base", "safety_monitor"):
+            rt.remove(f"/laggy/{name}")
 
 
 def test_place_item_needs_an_item_in_the_gripper(rt, robot):

@@ -1,10 +1,14 @@
 """Chapter 10 as a graded assignment, end to end with real nbgrader, kernels and robots.
 
-The chapter is released into a temporary course directory (``tools/assignments.py release 10``),
-then two students hand it in: one with the reference monitor in the exercise cell, one with a
-monitor whose fleet subscription has the default, VOLATILE, QoS. Grading runs the whole chapter
-for each in a fresh kernel; the reference must earn every point of the exercise, the wrong one
-fewer, with the late-joiner criterion named as the reason.
+The chapter is released into a temporary course directory (``tools/assignments.py release 10``).
+Releasing runs the whole instructor notebook, reference monitor included, in a fresh kernel with the
+student build, and gives the check cell one point per criterion that reference passed: so the release
+itself proves that the reference earns every point (7, each criterion of the checker).
+
+Then one student hands it in with a monitor whose fleet subscription has the default, VOLATILE, QoS,
+and real nbgrader grades the whole chapter in a fresh kernel: that monitor must earn fewer points, with
+the late-joiner criterion named as the reason. (Grading the reference a second time, as a student,
+would run the same chapter again for what the release has shown; it cost about 85 s.)
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ def graded(course, tmp_path_factory):
     reference = solved(grade_cells(source)[EXERCISE])
     volatile = reference.replace("self.on_fleet_estop, ESTOP_QOS)", "self.on_fleet_estop, 10)")
     assert volatile != reference, "the reference changed: write the wrong answer anew"
-    students = {"alice": {EXERCISE: reference}, "bob": {EXERCISE: volatile}}
+    students = {"bob": {EXERCISE: volatile}}
     return grade_students(course_dir, students, tmp_path_factory, chapter=CHAPTER,
                           cell_timeout=CELL_TIMEOUT_S)
 
@@ -62,19 +66,19 @@ def test_the_release_holds_the_starting_code_and_no_solution(course):
     assert "show_solution(" not in text and "show_passing_report(" not in text
     assert student_build.find_solutions(course_dir / "source")  # the grep below is not empty-handed
     assert student_build.find_solutions(course_dir / "release") == []
-    assert "10_capstone: reference solutions pass" in output
+    # the release ran the reference: it passed every criterion, and each became a point
+    passed = f"{CHAPTER}: reference solutions pass, points {{'{EXERCISE}_check': 7}}"
+    assert passed in output, output
 
 
-def test_the_reference_earns_every_point_and_a_volatile_subscription_fewer(graded):
+def test_a_volatile_fleet_subscription_loses_the_late_joiner_point(graded):
     rows, log, out, output = graded
-    most = float(rows["alice"]["max"])
-    assert points(rows, "alice", EXERCISE) == most == 7, output
-    assert reason(rows, "alice", EXERCISE) == ""
-    assert points(rows, "bob", EXERCISE) < most
+    most = float(rows["bob"]["max"])
+    assert most == 7, output  # the points the release gave for the reference's seven criteria
+    assert points(rows, "bob", EXERCISE) < most, output
     assert "a robot whose safety monitor starts after the fleet stop is stopped too" in reason(
         rows, "bob", EXERCISE)
-    for student in ("alice", "bob"):
-        assert "fleet-wide e-stop" in (out / "feedback" / f"{student}.html").read_text()
+    assert "fleet-wide e-stop" in (out / "feedback" / "bob.html").read_text()
 
 
 def test_nothing_of_the_grading_is_left(graded):

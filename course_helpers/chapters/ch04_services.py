@@ -30,7 +30,7 @@ from course_helpers.core.executors import SpinThread, plain_executor
 from course_helpers.core.node_hook import build_nodes
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_namespace
-from course_helpers.core.waiting import poll_until
+from course_helpers.core.waiting import poll_until, wait_until
 
 DEMO_NAMESPACE = "/deadlock_demo"
 ADD_SERVICE = "add_two_ints"
@@ -291,46 +291,83 @@ class RoundTrips:
                          for k in self.samples)
 
 
-def measure_round_trips(rt=None, samples: int = 200, timeout_s: float = 1.0) -> RoundTrips:
+HANDSHAKE_SEQ = -1  # the ping that proves both directions matched; its echoes are not timed
+HANDSHAKE_PERIOD_S = 0.1  # s; how often the handshake ping is sent again until one is echoed
+
+
+def _echoed_once(ping, echoed: threading.Event, timeout: float) -> None:
+    """Send the handshake ping every :data:`HANDSHAKE_PERIOD_S` until one comes back.
+
+    The probe seeing the echo node's endpoints does not mean the echo node's ``pong`` writer has
+    matched the probe's reader yet (each side learns of the other in its own discovery message),
+    and an echo published before that match is dropped. One echo that arrives proves the whole
+    loop is matched; raises :class:`WaitTimeout` if none comes within ``timeout`` seconds.
+    """
+    def echoed_or_ping_again() -> bool:
+        if echoed.is_set():
+            return True
+        ping.publish(Int64(data=HANDSHAKE_SEQ))
+        return False
+
+    wait_until(echoed_or_ping_again, timeout, "the echo node to echo a handshake ping",
+               period=HANDSHAKE_PERIOD_S, wake_on=None)
+
+
+def measure_round_trips(rt=None, samples: int = 200, timeout_s: float = 10.0) -> RoundTrips:
     """Time topics against a service, with the echo node in a child process.
 
-    For each sample, the notebook side (a probe node in the kernel) publishes one
-    message on ``latency/ping`` and waits for the echo on ``latency/pong``, then
-    calls ``latency/add_two_ints`` and waits for the response. Recorded: how long
-    ``publish()`` blocked the caller, the topic round trip (ping out, pong back) and
-    the service round trip (request out, response back). The child process and the
-    probe are removed afterwards.
+    First a handshake: pings until one is echoed, and one service call, neither timed, so that
+    every timed message goes over a matched pair. Then, for each sample, the notebook side (a
+    probe node in the kernel) publishes one message on ``latency/ping`` and waits for the echo of
+    that very message on ``latency/pong``, then calls ``latency/add_two_ints`` and waits for the
+    response. Recorded: how long ``publish()`` blocked the caller, the topic round trip (ping out,
+    pong back) and the service round trip (request out, response back). The child process and
+    the probe are removed afterwards.
 
     Args:
         rt: the runtime (default: this kernel's).
         samples: how many samples of each kind, 10 to 5000.
-        timeout_s: how long to wait for one echo or one response [s].
+        timeout_s: how long to wait for the handshake, for one echo or for one response [s]. Over a
+            matched reliable pair every echo comes; a slow one on a busy machine is just a slow
+            sample (the medians hardly move), so this only catches an echo node that stopped.
 
-    Returns a :class:`RoundTrips`; raises :class:`WaitTimeout` if an echo or a response
-    does not come.
+    Returns a :class:`RoundTrips`; raises :class:`WaitTimeout` if the handshake, an echo or a
+    response does not come.
     """
     if isinstance(samples, bool) or not isinstance(samples, int) or not 10 <= samples <= 5000:
         raise CourseError(f"samples must be a whole number from 10 to 5000, got {samples!r}")
+    if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not timeout_s > 0:
+        raise CourseError(f"timeout_s must be a number of seconds above 0, got {timeout_s!r}")
     rt = rt or get_runtime()
     add_two_ints = _add_two_ints_type()
     rt.spawn("latency_echo", LatencyEcho, wait_for="/latency_echo")
     probe = rt.node("latency_probe")
     try:
+        awaited = [HANDSHAKE_SEQ]  # the sequence number whose echo is awaited
         pong_seen = threading.Event()
+
+        def on_pong(msg: Int64) -> None:
+            if msg.data == awaited[0]:  # a late echo of an earlier ping is not this one
+                pong_seen.set()
+
         ping = probe.create_publisher(Int64, "latency/ping", 10)
-        probe.create_subscription(Int64, "latency/pong", lambda _msg: pong_seen.set(), 10)
+        probe.create_subscription(Int64, "latency/pong", on_pong, 10)
         client = probe.create_client(add_two_ints, "latency/add_two_ints")
-        rt.wait_until(lambda: ping.get_subscription_count() >= 1 and client.service_is_ready(), 10,
+        rt.wait_until(lambda: ping.get_subscription_count() >= 1 and client.service_is_ready(), timeout_s,
                       "the echo node's ping subscription and service")
-        time.sleep(0.2)  # let discovery settle before timing
+        _echoed_once(ping, pong_seen, timeout_s)
+        rt.wait_for_future(client.call_async(add_two_ints.Request(a=HANDSHAKE_SEQ, b=1)), timeout_s,
+                           "the service response to the handshake request")
         result = {kind: [] for kind in LATENCY_KINDS}
         for seq in range(samples):
             pong_seen.clear()
+            awaited[0] = seq
             start = time.perf_counter()
             ping.publish(Int64(data=seq))
             published = time.perf_counter()
             if not pong_seen.wait(timeout_s):
-                raise WaitTimeout(f"no pong within {timeout_s:g} s for ping {seq}")
+                raise WaitTimeout(f"no pong within {timeout_s:g} s for ping {seq} (the handshake had "
+                                  "succeeded: has the echo node stopped?)")
             echoed = time.perf_counter()
             result["publish"].append(published - start)
             result["topic_round_trip"].append(echoed - start)

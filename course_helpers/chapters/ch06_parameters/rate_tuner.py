@@ -1,9 +1,11 @@
 """Retune a running node's publish rate through its parameter services, and measure what it really does.
 
 :class:`RateTuner` talks to the node's parameter services as ``ros2 param set`` does,
-counts the messages that arrive on its topic, plots requested against measured rate, and
-offers a slider widget that retunes live. The widget's plot is drawn in a thread of its
-own, never in the executor thread: drawing there would delay the very timers it measures.
+counts the messages that arrive on its topic (their rate from the times the talker published them,
+so a burst of late deliveries on a busy machine does not read as a faster talker), plots
+requested against measured rate, and offers a slider widget that retunes live. The widget's
+plot is drawn in a thread of its own, never in the executor thread: drawing there would delay
+the very timers it measures.
 :meth:`RateTuner.show` displays the widget with a static record of its final state (the rate
 set, the rate measured for it, and the plot), which is what a saved copy of the notebook shows.
 """
@@ -59,7 +61,8 @@ class RateTuner:
         self.parameter = parameter
         self.minimum, self.maximum = float(minimum), float(maximum)
         self.started = time.monotonic()
-        self.arrivals: deque[float] = deque(maxlen=5000)
+        # (monotonic arrival time [s], the publisher's source timestamp [s]) of each message
+        self.arrivals: deque[tuple[float, float]] = deque(maxlen=5000)
         self.setpoints: list[tuple[float, float]] = []  # (seconds since start, requested Hz)
         self.samples: list[tuple[float, float]] = []  # rolling rate: (seconds since start, Hz)
         self.measurements: list[tuple[float, float]] = []  # measure() results: (seconds since start, Hz)
@@ -146,16 +149,20 @@ class RateTuner:
         return self._rate_between(now - window_s, now)
 
     def _rate_between(self, start: float, end: float) -> float:
-        """Messages per second between two monotonic times, from the spacing of the arrivals."""
-        with self._lock:
-            window = [t for t in self.arrivals if start <= t <= end]
-        if len(window) >= 3:
-            return (len(window) - 1) / (window[-1] - window[0])
-        return len(window) / (end - start)
+        """Messages per second among those that arrived between two monotonic times.
 
-    def _on_message(self, _msg) -> None:
+        The rate is the talker's: from the spacing of the messages' source timestamps (when
+        ``publish()`` ran), not of their arrivals, which a busy subscriber takes in bursts."""
         with self._lock:
-            self.arrivals.append(time.monotonic())
+            published = [stamp for arrived, stamp in self.arrivals if start <= arrived <= end]
+        if len(published) >= 3 and max(published) > min(published):
+            return (len(published) - 1) / (max(published) - min(published))
+        return len(published) / (end - start)
+
+    def _on_message(self, _msg, info) -> None:
+        """Note when a message arrived and when it was published (``info``: rmw's message info)."""
+        with self._lock:
+            self.arrivals.append((time.monotonic(), info["source_timestamp"] / 1e9))
 
     def _now(self) -> float:
         return time.monotonic() - self.started

@@ -1,7 +1,10 @@
 """The robot's navigator: the ``navigate`` action server (course_interfaces/action/Navigate).
 
 It drives the base to a point through ``cmd_vel``, reports progress as feedback, can be
-cancelled, and aborts when the e-stop is engaged. It runs in the kernel.
+cancelled, and aborts when the e-stop is engaged. A goal succeeds once the base stands still at the
+target: odometry sent after the stop command shows it at rest there, so whatever acts next (the
+gripper) finds the robot where the navigator says it is, however late the messages come. It runs
+in the kernel.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.parameter import Parameter
 from rclpy.task import Future
+from rclpy.time import Time
 
 from course_helpers.chapters.ch10_capstone.channels import COMMAND_QOS, ODOM_QOS
 from course_helpers.chapters.ch10_capstone.robot import RobotNode
@@ -25,8 +29,9 @@ from course_helpers.chapters.ch10_capstone.warehouse import SPEED_LIMIT
 
 @dataclass
 class Drive:
-    """The goal being driven: its handle, target [m], speed [m/s], the distance so far [m], and
-    ``done``, the future that the execute callback awaits and the control loop completes."""
+    """The goal being driven: its handle, target [m], speed [m/s], the distance so far [m],
+    ``done``, the future that the execute callback awaits and the control loop completes, and
+    ``stopped_at``, when the stop command at the target was sent (None while driving)."""
 
     goal_handle: object
     target: tuple[float, float]
@@ -35,13 +40,17 @@ class Drive:
     last_pose: tuple[float, float]
     done: Future
     travelled: float = 0.0
+    stopped_at: Time | None = None
 
 
 class Navigator(RobotNode):
     """Action server ``navigate``: drives the base to a point with feedback, cancel and e-stop abort.
 
     The control loop is a 20 Hz timer; the execute callback is a coroutine that awaits
-    the loop's verdict, so one single-threaded executor runs everything.
+    the loop's verdict, so one single-threaded executor runs everything. Within
+    ``goal_tolerance`` of the target it commands a stop, and the goal succeeds at the first
+    odometry stamped after that stop that shows the base at rest within tolerance (the base may
+    still have been moving on older commands; if it stopped too far, the loop drives on).
     """
 
     def __init__(self, namespace: str = ""):
@@ -50,6 +59,8 @@ class Navigator(RobotNode):
         self.tolerance = self.declare_parameter("goal_tolerance", 0.05).value  # [m]
         self.add_on_set_parameters_callback(self.check_parameters)
         self.pose: tuple[float, float] | None = None
+        self.at_rest = False  # the last odometry's velocity was zero
+        self.odom_stamp: Time | None = None  # when the base sent the last odometry
         self.active: Drive | None = None
         self.cmd_publisher = self.create_publisher(Twist, "cmd_vel", COMMAND_QOS)
         self.odom_subscription = self.create_subscription(Odometry, "odom", self.on_odom, ODOM_QOS)
@@ -79,6 +90,9 @@ class Navigator(RobotNode):
 
     def on_odom(self, msg: Odometry) -> None:
         self.pose = (msg.pose.pose.position.x, msg.pose.pose.position.y)
+        velocity = msg.twist.twist.linear  # [m/s]
+        self.at_rest = velocity.x == 0.0 and velocity.y == 0.0
+        self.odom_stamp = Time.from_msg(msg.header.stamp)
 
     def on_goal(self, goal: Navigate.Goal) -> GoalResponse:
         if self.estop_engaged or self.pose is None:
@@ -121,8 +135,13 @@ class Navigator(RobotNode):
         dx, dy = drive.target[0] - self.pose[0], drive.target[1] - self.pose[1]
         remaining = math.hypot(dx, dy)
         if remaining <= self.tolerance:
-            self.finish("succeeded")
+            if drive.stopped_at is None:
+                drive.stopped_at = self.get_clock().now()
+            self.cmd_publisher.publish(Twist())  # stop here
+            if self.at_rest and self.odom_stamp > drive.stopped_at:  # it has stopped here: arrived
+                self.finish("succeeded")
             return
+        drive.stopped_at = None  # not (or no longer) at the target: drive
         cruise = min(drive.speed if drive.speed > 0 else self.max_speed, self.max_speed)
         speed = max(0.05, min(cruise, 3.0 * remaining))  # near the goal: 3 m/s per metre left
         self.cmd_publisher.publish(Twist(linear=Vector3(x=speed * dx / remaining, y=speed * dy / remaining)))
