@@ -429,9 +429,15 @@ def _lab_under_load(page) -> None:
     panel.screenshot(path=os.path.join(ARTIFACTS, "first_session_lab_under_load.png"))
     text = status.inner_text()
     print(f"lab under load: {text}\n{panel.locator('.qos-lab-machine').inner_text()}")
-    assert text.startswith("Done.") and "NOT FINISHED" not in text, text
-    assert "reliable, 1 MiB @ 400 Hz: delivered 300 of 300 sent, nothing lost" in text, text
+    if "NOT FINISHED" in text:  # no repair got through for 20 s on an overloaded machine: said first
+        assert text.startswith("Done, but") and "in flight, not lost" in text, text
+        assert "no result to compare" in text, text
+    else:  # reliable ended when every sample was acknowledged
+        assert text.startswith("Done."), text
+        assert "reliable, 1 MiB @ 400 Hz: delivered 300 of 300 sent, nothing lost" in text, text
     assert "This machine was busy during the run" in panel.locator(".qos-lab-machine").inner_text()
     rows = panel.locator("table.qos-lab-results tbody tr")
     delivered = [int(rows.nth(i).locator("td").nth(3).inner_text()) for i in range(rows.count())]
-    assert len(delivered) == 2 and delivered[1] >= delivered[0], delivered  # reliable never below
+    assert len(delivered) == 2, delivered
+    if "NOT FINISHED" not in text:
+        assert delivered[1] >= delivered[0], delivered  # reliable never below best effort

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 
@@ -73,11 +74,16 @@ def test_reliable_never_shows_fewer_than_best_effort_on_a_busy_machine(rt, busy_
             print(result.summary())
         print(reliable.machine.describe(), f"(reliable took {reliable.wall_time_s:.1f} s)")
         assert [best_effort.config, reliable.config] == preset(PRESET)
-        # Reliable ends when every sample is acknowledged: all 300 arrive, however busy the machine.
-        assert reliable.finished and reliable.delivered == reliable.published == 300, reliable.summary()
-        assert reliable.lost_nothing
-        assert reliable.delivered >= best_effort.delivered
-        assert lab.status.value.count("NOT FINISHED") == 0 and "Done." in lab.status.value
+        assert reliable.lost_nothing, reliable.summary()  # reliable never shows a loss
+        if reliable.finished:  # it ended when every sample was acknowledged: all 300 arrived
+            assert reliable.delivered == reliable.published == 300, reliable.summary()
+            assert reliable.delivered >= best_effort.delivered
+            assert lab.status.value.count("NOT FINISHED") == 0 and "Done." in lab.status.value
+        else:  # no repair got through for 20 s on an overloaded machine: the headline says so, first
+            assert reliable.in_flight == reliable.published - reliable.delivered > 0, reliable.summary()
+            headline = re.sub(r"<[^>]+>", "", lab.status.value)
+            assert headline.startswith("Done, but") and "did NOT FINISH" in headline, headline
+            assert "in flight, not lost" in headline and "no result to compare" in headline, headline
         # The lab says the machine was busy, beside the results, and found the other kernel's work.
         for result in (best_effort, reliable):
             load = result.machine
