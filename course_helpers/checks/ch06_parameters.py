@@ -55,7 +55,7 @@ class OverheatProbe(Node):
         future = self.monitor_parameters.set_parameters([Parameter(name, value=value)])
         return self.rt.wait_for_future(future, 3.0, f"setting {name}").results[0]
 
-    def status_after(self, celsius: float | None, expected: str, timeout_s: float = 1.5) -> str | None:
+    def status_after(self, celsius: float | None, expected: str, timeout_s: float = 4.0) -> str | None:
         """Publish a temperature (unless None), wait up to ``timeout_s`` for status ``expected``.
 
         Only a status from the second one on after the change counts: the first may come from a
