@@ -215,7 +215,9 @@ def ros2_failure_experiment(rt, side: Ros2Side | None = None) -> FailureResult:
         window = _window(first_s)
         restarted = rt.spawn(restarted_label, GraphWatcher,
                              params={"name": side.FIRST[1:], "topic": side.topic}, env=side.env)
-        newcomer_s = _newcomer_hears(restarted, window)
+        # discovery finds it whenever its process is up: on a busy machine that may take longer than
+        # the window ROS 1's newcomer got, so this one may wait as long as any start (its time is printed)
+        newcomer_s = _newcomer_hears(restarted, max(window, START_TIMEOUT_S))
         others = {side.TALKER, side.LISTENER}
         if not poll_until(lambda: _sees(restarted, others), START_TIMEOUT_S) or not restarted.alive:
             raise restarted.failure("it saw the other nodes")
