@@ -1,4 +1,5 @@
-"""A course install other Unix users can run, for tests that act as them (classroom, namespaces).
+"""Other Unix users for tests that act as them (domains, namespaces, classroom), and a course install
+they can run.
 
 This repository's .venv usually links its interpreter into /root, which other users cannot enter.
 :func:`shared_venv` then makes a hard-linked copy of .venv whose interpreter is the system Python of
@@ -9,12 +10,22 @@ opened up.
 from __future__ import annotations
 
 import os
+import pwd
 import stat
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+
+def ensure_user(name: str) -> pwd.struct_passwd:
+    """The Unix user ``name``, created (no home, no login shell) if it does not exist yet; needs root."""
+    try:
+        return pwd.getpwnam(name)
+    except KeyError:
+        subprocess.run(["useradd", "--no-create-home", "--shell", "/usr/sbin/nologin", name], check=True)
+        return pwd.getpwnam(name)
 
 
 def closed_to_others(path: Path) -> str | None:

@@ -19,19 +19,13 @@ import pytest
 
 from course_helpers.core import domains
 
+from .shared_install import ensure_user
+
 KERNELS_PER_USER = 25
 HOSTILE_KERNELS = 12
 USERS = ("course_domain_a", "course_domain_b")
 HOSTILE = "course_domain_x"
 needs_root = pytest.mark.skipif(os.geteuid() != 0, reason="needs root to create Unix users and act as them")
-
-
-def _ensure_user(name: str) -> pwd.struct_passwd:
-    try:
-        return pwd.getpwnam(name)
-    except KeyError:
-        subprocess.run(["useradd", "--no-create-home", "--shell", "/usr/sbin/nologin", name], check=True)
-        return pwd.getpwnam(name)
 
 
 class Holder:
@@ -119,7 +113,7 @@ def shared_tmp():
 
 @needs_root
 def test_two_users_kernels_never_share_a_domain():
-    users = [_ensure_user(name) for name in USERS]
+    users = [ensure_user(name) for name in USERS]
     holders = []
     try:
         for _ in range(KERNELS_PER_USER):
@@ -133,7 +127,7 @@ def test_two_users_kernels_never_share_a_domain():
 
 @needs_root
 def test_a_hostile_user_can_neither_take_nor_block_another_users_domain(shared_tmp):
-    victim_user, hostile_user = _ensure_user(USERS[0]), _ensure_user(HOSTILE)
+    victim_user, hostile_user = ensure_user(USERS[0]), ensure_user(HOSTILE)
     victim = Holder(victim_user, domains.reserve_domain)
     hostile: list[Holder] = []
     try:
@@ -178,7 +172,7 @@ def test_a_hostile_user_can_neither_take_nor_block_another_users_domain(shared_t
         assert victim.domain not in taken, f"a hostile kernel got the victim's domain {victim.domain}"
         assert len(set(taken)) == HOSTILE_KERNELS, taken
         # ... and after the squat attempt and with the hostile kernels alive, a third user gets a domain.
-        other = Holder(_ensure_user(USERS[1]), domains.reserve_domain)
+        other = Holder(ensure_user(USERS[1]), domains.reserve_domain)
         try:
             assert other.domain not in {victim.domain, *taken}
         finally:
@@ -195,7 +189,7 @@ def test_a_per_user_tmpdir_changes_nothing(shared_tmp):
         for index, name in enumerate(USERS):
             own_tmp = shared_tmp / name
             own_tmp.mkdir()
-            user = _ensure_user(name)
+            user = ensure_user(name)
             os.chown(own_tmp, user.pw_uid, user.pw_gid)
             for _ in range(5):
                 job = _contested([h.domain for h in holders])

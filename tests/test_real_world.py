@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import pwd
 import shutil
 import signal
 import subprocess
@@ -32,7 +31,7 @@ from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
 from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
-from .shared_install import closed_to_others, shared_venv
+from .shared_install import closed_to_others, ensure_user, shared_venv
 
 REPO = Path(__file__).resolve().parent.parent
 USER = "course_netns"
@@ -67,14 +66,6 @@ AS_USER = textwrap.dedent("""
 """)
 
 
-def _ensure_user(name: str) -> pwd.struct_passwd:
-    try:
-        return pwd.getpwnam(name)
-    except KeyError:
-        subprocess.run(["useradd", "--no-create-home", "--shell", "/usr/sbin/nologin", name], check=True)
-        return pwd.getpwnam(name)
-
-
 def _processes_of(uid: int) -> list[psutil.Process]:
     return [p for p in psutil.process_iter(["uids"]) if p.info["uids"] and p.info["uids"].real == uid]
 
@@ -90,7 +81,7 @@ def test_lossy_link_and_two_machines_as_an_ordinary_user():
         blocked = closed_to_others(REPO / "course_helpers" / "__init__.py")
         if blocked:
             pytest.skip(f"the course at {REPO} is not readable by other users ({blocked} is closed)")
-        user = _ensure_user(USER)
+        user = ensure_user(USER)
         workdir = Path(tempfile.mkdtemp(prefix="ros2-course-rootless-", dir="/var/tmp"))
         workdir.chmod(0o755)
         python = str(shared_venv(workdir) / "bin" / "python")
