@@ -164,7 +164,7 @@ def _run_the_lab(page, base: str, token: str) -> None:
     sources, started = {first_src}, time.monotonic()
     poll_until(lambda: sources.add(image.get_attribute("src")) or rows.count() > rows_before, 60, period=0.05)
     _wait_until_finished(panel)
-    panel.screenshot(path=os.path.join(ARTIFACTS, "qos_lab_panel.png"))
+    _screenshot(panel, "qos_lab_panel.png")
     page.screenshot(path=os.path.join(ARTIFACTS, "qos_lab_page.png"))
     status = panel.locator(".qos-lab-status").inner_text()
     print(f"{len(sources) - 1} plot frames seen in the browser in {time.monotonic() - started:.1f} s; "
@@ -179,7 +179,7 @@ def _run_the_lab(page, base: str, token: str) -> None:
     poll_until(lambda: sources.add(image.get_attribute("src")) or rows.count() >= rows_before + 3, 90,
                period=0.05)
     _wait_until_finished(panel)
-    panel.screenshot(path=os.path.join(ARTIFACTS, "qos_lab_compare.png"))
+    _screenshot(panel, "qos_lab_compare.png")
     status = panel.locator(".qos-lab-status").inner_text()
     print(f"compare: {len(sources)} plot frames in {time.monotonic() - started:.1f} s; status: {status}")
     assert rows.count() == rows_before + 3, status
@@ -203,12 +203,24 @@ def _run_the_lab(page, base: str, token: str) -> None:
     span = (frames[-1] - frames[0]) / 1000 if len(frames) > 1 else 0.0
     print(f"fast stream: {len(frames)} frames in {span:.1f} s in the browser "
           f"({(len(frames) - 1) / span if span else 0:.1f} Hz); status: {status}")
-    panel.screenshot(path=os.path.join(ARTIFACTS, "qos_lab_fast.png"))
+    _screenshot(panel, "qos_lab_fast.png")
     assert rows.count() == rows_before + 4, status
     # How many live frames the kernel draws depends on the CPU it gets (this machine is shared): at
     # least one besides the final picture shows that the plot follows a fast stream.
     assert len(frames) >= 2, "the plot did not follow a fast stream"
     assert "Traceback" not in page.content()
+
+
+def _screenshot(panel, name: str) -> None:
+    """Save the panel's picture; a widget that re-renders meanwhile detaches the element, and is then
+    found again (the picture is for readers of tests/artifacts, not a check)."""
+    for attempt in range(3):
+        try:
+            panel.screenshot(path=os.path.join(ARTIFACTS, name), timeout=30_000)
+            return
+        except Exception as error:  # playwright's Error: "Element is not attached to the DOM"
+            if "not attached" not in str(error) or attempt == 2:
+                raise
 
 
 def _wait_until_finished(panel) -> None:
