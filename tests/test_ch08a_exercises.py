@@ -5,6 +5,7 @@ on after the first failure."""
 
 from __future__ import annotations
 
+import pytest
 from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -23,6 +24,7 @@ from course_helpers.checks.ch08_qos import (
     check_deadline_watchdog,
     check_heartbeat,
     check_mismatched_subscriber,
+    seconds_without_writer,
 )
 from course_helpers.notebook.solution import solution_source
 from course_helpers.solutions import ch08_qos as reference
@@ -452,9 +454,18 @@ def test_heartbeat_checker_rejects_a_silent_heartbeat_and_an_alarmist_monitor(rt
         report.summary()
 
 
+def test_time_without_a_writer_counts_only_the_window_and_starts_from_the_last_state_before_it():
+    changes = [(0.0, 1), (2.0, 0), (2.5, 1), (4.5, 0), (9.0, 1)]
+    assert seconds_without_writer(changes, 1.0, 5.0) == pytest.approx(1.0)  # 2.0-2.5 and 4.5-5.0
+    assert seconds_without_writer(changes, 3.0, 4.0) == pytest.approx(0.0)  # alive throughout
+    assert seconds_without_writer(changes, 2.2, 2.4) == pytest.approx(0.2)  # lost before the window began
+    assert seconds_without_writer([], 0.0, 3.0) == pytest.approx(3.0)  # never alive
+    assert seconds_without_writer(changes, 4.0, 12.0) == pytest.approx(4.5)  # 4.5-9.0
+
+
 def test_heartbeat_checker_rejects_a_seldom_heartbeat_and_a_monitor_that_never_says_alive(rt):
     report = check_heartbeat(SeldomHeartbeat, LostOnlyMonitor, rt)
-    assert _failed(report) == ["heartbeat: still alive two leases later",
+    assert _failed(report) == ["heartbeat: alive through 6 leases, with at most 2 of them lost",
                                "monitor: publishes 'alive' when the heartbeat is back"], report.summary()
 
 

@@ -368,6 +368,27 @@ def _judge_alarms(alarms: list[float], times: dict[str, float], deadline_s: floa
 # ====================================================================== exercise 08.4
 HEARTBEAT_MAX_LEASE_S = 1.0
 LOST_MARGIN_S = 1.5  # s beyond the lease that a loaded machine may take to notice a silent writer
+WATCH_LEASES = 6  # leases for which a heartbeat must stay alive
+DOWN_LEASES = 2  # leases of that window without a live writer that a loaded machine is forgiven
+
+
+def seconds_without_writer(changes: list[tuple[float, int]], start: float, end: float) -> float:
+    """Seconds of [``start``, ``end``] in which no writer was alive.
+
+    ``changes`` holds (time, writers alive) for every liveliness event, in time order; the count
+    before the first event is 0.
+    """
+    alive = next((count for when, count in reversed(changes) if when <= start), 0)
+    down, since = 0.0, start
+    for when, count in changes:
+        if when <= start:
+            continue
+        if when >= end:
+            break
+        if alive == 0:
+            down += when - since
+        alive, since = count, when
+    return down + (end - since if alive == 0 else 0.0)
 
 
 def check_heartbeat(heartbeat_class, monitor_class, rt=None) -> CheckReport:
@@ -417,10 +438,12 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
             node.subscriptions, "/heartbeat/enable", Bool, "The exercise names the topic and its type."):
             return
         seen = {"alive": 0, "lost": 0}  # writers alive now; times one ran out of its lease
+        changes: list[tuple[float, int]] = []  # (monotonic time, writers alive) at every liveliness event
 
         def on_liveliness(status) -> None:
             seen["alive"] = status.alive_count
             seen["lost"] += max(0, status.not_alive_count_change)
+            changes.append((time.monotonic(), status.alive_count))
 
         probe.create_subscription(
             String, "/heartbeat", lambda _m: None,
@@ -431,13 +454,16 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
         if not report.add("heartbeat: a monitor sees it alive", poll_until(lambda: seen["alive"] == 1, 5.0),
                           hint=hint):
             return
-        lost_before = seen["lost"]
-        time.sleep(2 * lease)  # two leases: assertions that stopped, or come too seldom, have run out
-        # a loaded machine may miss one lease and recover: one lapse is forgiven, not a pattern
+        lost_before, started = seen["lost"], time.monotonic()
+        time.sleep(WATCH_LEASES * lease)  # assertions that stop or come too seldom run out again
+        down = seconds_without_writer(list(changes), started, time.monotonic())
         lapses = seen["lost"] - lost_before
-        still = poll_until(lambda: seen["alive"] == 1, 0.5) and lapses <= 1
-        if not report.add("heartbeat: still alive two leases later", still,
-                          f"its lease ran out {lapses} time(s)" if lapses else "", hint=hint):
+        # the time without a live writer, not one sample at the end: a loaded machine may let a good
+        # heartbeat lapse briefly (and report either edge late), but never for most of the window
+        if not report.add(f"heartbeat: alive through {WATCH_LEASES} leases, with at most "
+                          f"{DOWN_LEASES} of them lost", down <= DOWN_LEASES * lease,
+                          f"its lease ran out {lapses} time(s), {down:.1f} s without a live writer"
+                          if lapses else "", hint=hint):
             return
         poll_until(lambda: enable.get_subscription_count() > 0, 3.0)
         enable.publish(Bool(data=False))
