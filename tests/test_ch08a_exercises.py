@@ -19,12 +19,12 @@ from rclpy.qos import (
 )
 from std_msgs.msg import Bool, String
 
+from course_helpers.chapters.ch08_qos.liveliness import seconds_without_writer
 from course_helpers.checks.ch08_qos import (
     check_channel_qos,
     check_deadline_watchdog,
     check_heartbeat,
     check_mismatched_subscriber,
-    seconds_without_writer,
 )
 from course_helpers.notebook.solution import solution_source
 from course_helpers.solutions import ch08_qos as reference

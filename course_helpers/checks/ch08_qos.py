@@ -39,6 +39,7 @@ from course_helpers.chapters.ch08_qos.exercise import (
     ScheduledHeartbeat,
     SlowConsumer,
 )
+from course_helpers.chapters.ch08_qos.liveliness import seconds_without_writer
 from course_helpers.checks import CheckReport, student_node
 from course_helpers.core.errors import CourseError
 from course_helpers.core.qos_dict import qos_from_dict, qos_to_dict
@@ -372,25 +373,6 @@ WATCH_LEASES = 6  # leases for which a heartbeat must stay alive
 DOWN_LEASES = 2  # leases of that window without a live writer that a loaded machine is forgiven
 
 
-def seconds_without_writer(changes: list[tuple[float, int]], start: float, end: float) -> float:
-    """Seconds of [``start``, ``end``] in which no writer was alive.
-
-    ``changes`` holds (time, writers alive) for every liveliness event, in time order; the count
-    before the first event is 0.
-    """
-    alive = next((count for when, count in reversed(changes) if when <= start), 0)
-    down, since = 0.0, start
-    for when, count in changes:
-        if when <= start:
-            continue
-        if when >= end:
-            break
-        if alive == 0:
-            down += when - since
-        alive, since = count, when
-    return down + (end - since if alive == 0 else 0.0)
-
-
 def check_heartbeat(heartbeat_class, monitor_class, rt=None) -> CheckReport:
     """Check a MANUAL_BY_TOPIC heartbeat node class and a liveliness monitor node class.
 
@@ -437,41 +419,37 @@ def _check_heartbeat_node(rt, report, node_class) -> None:
             report, "heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
             node.subscriptions, "/heartbeat/enable", Bool, "The exercise names the topic and its type."):
             return
-        seen = {"alive": 0, "lost": 0}  # writers alive now; times one ran out of its lease
-        changes: list[tuple[float, int]] = []  # (monotonic time, writers alive) at every liveliness event
+        changes: list[tuple[float, int, int]] = []  # per liveliness event: (monotonic s, alive, lost)
 
-        def on_liveliness(status) -> None:
-            seen["alive"] = status.alive_count
-            seen["lost"] += max(0, status.not_alive_count_change)
-            changes.append((time.monotonic(), status.alive_count))
+        def alive(count: int = 1) -> bool:
+            return (changes[-1][1] if changes else 0) == count
 
         probe.create_subscription(
             String, "/heartbeat", lambda _m: None,
             qos_from_dict({"depth": 1, "liveliness": "manual_by_topic", "lease_s": HEARTBEAT_MAX_LEASE_S}),
-            event_callbacks=SubscriptionEventCallbacks(liveliness=on_liveliness))
+            event_callbacks=SubscriptionEventCallbacks(liveliness=lambda status: changes.append(
+                (time.monotonic(), status.alive_count, max(0, status.not_alive_count_change)))))
         enable = probe.create_publisher(Bool, "/heartbeat/enable", 10)
         hint = "Section 7: a MANUAL_BY_TOPIC writer must assert itself well within every lease."
-        if not report.add("heartbeat: a monitor sees it alive", poll_until(lambda: seen["alive"] == 1, 5.0),
-                          hint=hint):
+        if not report.add("heartbeat: a monitor sees it alive", poll_until(alive, 5.0), hint=hint):
             return
-        lost_before, started = seen["lost"], time.monotonic()
+        started = time.monotonic()
         time.sleep(WATCH_LEASES * lease)  # assertions that stop or come too seldom run out again
+        # time without a live writer, not one sample: a good heartbeat on a busy machine lapses only briefly
         down = seconds_without_writer(list(changes), started, time.monotonic())
-        lapses = seen["lost"] - lost_before
-        # the time without a live writer, not one sample at the end: a loaded machine may let a good
-        # heartbeat lapse briefly (and report either edge late), but never for most of the window
-        if not report.add(f"heartbeat: alive through {WATCH_LEASES} leases, with at most "
-                          f"{DOWN_LEASES} of them lost", down <= DOWN_LEASES * lease,
+        lapses = sum(lost for when, _alive, lost in list(changes) if when > started)
+        if not report.add(f"heartbeat: alive through {WATCH_LEASES} leases, with at most {DOWN_LEASES} of "
+                          "them lost", down <= DOWN_LEASES * lease,
                           f"its lease ran out {lapses} time(s), {down:.1f} s without a live writer"
                           if lapses else "", hint=hint):
             return
         poll_until(lambda: enable.get_subscription_count() > 0, 3.0)
         enable.publish(Bool(data=False))
         report.add(f"heartbeat: lost within {lease + LOST_MARGIN_S:g} s of a False on /heartbeat/enable",
-                   poll_until(lambda: seen["alive"] == 0, lease + LOST_MARGIN_S),
+                   poll_until(lambda: alive(0), lease + LOST_MARGIN_S),
                    hint="What does the node do when False arrives? Nothing may assert its writer then.")
         enable.publish(Bool(data=True))
-        report.add("heartbeat: alive again after a True", poll_until(lambda: seen["alive"] == 1, 3.0),
+        report.add("heartbeat: alive again after a True", poll_until(alive, 3.0),
                    hint="What does the node do when True arrives after a False?")
 
 

@@ -5,7 +5,9 @@ publishers run in child processes, so that liveliness travels between two partic
 
 * :func:`kill_talker` - :class:`~.publishers.AliveTalker` (AUTOMATIC) is killed with SIGKILL;
 * :func:`watch_quiet_spell` - :class:`~.publishers.LivelinessTalker` goes quiet on an AUTOMATIC and a
-  MANUAL_BY_TOPIC topic while its process lives, and reports ``start`` and its ``lost`` events.
+  MANUAL_BY_TOPIC topic while its process lives, and reports ``start`` and its ``lost`` events;
+* :func:`seconds_without_writer` - from a subscription's liveliness events, how long in a window no
+  writer was alive (the heartbeat checker's measure).
 """
 
 from __future__ import annotations
@@ -155,3 +157,22 @@ def plot_liveliness(results: list[LivelinessResult], titles: list[str]):
         ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
     return fig
+
+
+def seconds_without_writer(changes: list[tuple], start: float, end: float) -> float:
+    """Seconds of [``start``, ``end``] in which no writer was alive.
+
+    ``changes`` holds (time, writers alive, ...) for every liveliness event, in time order; the
+    count before the first event is 0.
+    """
+    alive = next((change[1] for change in reversed(changes) if change[0] <= start), 0)
+    down, since = 0.0, start
+    for when, count, *_rest in changes:
+        if when <= start:
+            continue
+        if when >= end:
+            break
+        if alive == 0:
+            down += when - since
+        alive, since = count, when
+    return down + (end - since if alive == 0 else 0.0)
