@@ -27,6 +27,8 @@ REPORT_WITHIN_S = 3.0  # the watchdog must report the killed talker this soon (i
 # well before its lease runs out
 REPEAT_WINDOW_S = 1.0  # after the report: no second alarm about the same silence
 NODE_NAME = "silence_watchdog"
+SILENCE_S = 0.5  # the exercise's threshold: a sender quiet for longer is reported [s]
+ALARM_KEY = "/silent_talkers"  # where the checker's record of senders keeps the alarms' arrival times
 RETURN_MESSAGES = 10  # the checker talks again in the dead talker's name: this many messages...
 RETURN_PERIOD_S = 0.05  # ...this far apart (as fast as the talkers)
 
@@ -82,9 +84,17 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
                        hint="Fix the criteria above, then check again.")
             return report
         alarms: list[str] = []
-        heard: set[str] = set()
-        probe.create_subscription(String, "silent_talkers", lambda m: alarms.append(m.data), 10)
-        probe.create_subscription(String, "chatter", lambda m: heard.add(m.data.split(":", 1)[0]), 10)
+        heard: dict[str, list[float]] = {}  # sender -> when the checker heard it (monotonic s)
+
+        def on_alarm(msg) -> None:
+            alarms.append(msg.data)
+            heard.setdefault(ALARM_KEY, []).append(time.monotonic())
+
+        def on_chatter(msg) -> None:
+            heard.setdefault(msg.data.split(":", 1)[0], []).append(time.monotonic())
+
+        probe.create_subscription(String, "silent_talkers", on_alarm, 10)
+        probe.create_subscription(String, "chatter", on_chatter, 10)
         impostor = probe.create_publisher(String, "chatter", 10)
         try:
             _run_scenario(report, rt, alarms, heard, impostor)
@@ -98,7 +108,8 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
     return report
 
 
-def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str], impostor) -> None:
+def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: dict[str, list[float]],
+                  impostor) -> None:
     dead, alive = TALKERS
     # A talker killed by an earlier check stays in the graph for its lease; a namesake of it would
     # make a watchdog that waits for the graph look right, so start once it is gone.
@@ -106,7 +117,7 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str], i
     lease = short_lease_env(TALKER_LEASE_S)
     children = {name: rt.spawn(name, NamedTalker, {"name": name, "rate_hz": TALKER_RATE_HZ},
                                wait_for=f"/{name}", env=lease) for name in TALKERS}
-    if not poll_until(lambda: heard >= set(TALKERS), 10):  # the checker's own set-up, not a criterion
+    if not poll_until(lambda: set(TALKERS) <= heard.keys(), 10):  # the checker's own set-up, not a criterion
         report.add("the checker could hear its two talkers", False, "no message from one of them within 10 s",
                    hint="The machine may be very busy; run the check again.")
         return
@@ -132,7 +143,12 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str], i
     report.add("reports that silence once", repeats == 1,
                "" if repeats == 1 else f"{repeats} alarms naming {dead}",
                hint="Keep track of the senders you have already reported (the skeleton's self.reported).")
-    report.add(f"never reports {alive}, which keeps talking", not any(alive in a for a in alarms),
+    silences = _silences_before_alarms(heard, alive, alarms)
+    wrong = [gap for gap in silences if gap <= SILENCE_S * 0.8]
+    report.add(f"never reports {alive}, which keeps talking", not wrong,
+               f"the checker heard it every {max(wrong):.2f} s or sooner before the alarm" if wrong else
+               (f"it named {alive} after this busy machine had delivered nothing from it for "
+                f"{min(silences):.1f} s, a real silence" if silences else ""),
                hint="Compare each sender's own last-heard time.")
     # The dead talker comes back (the checker talks in its name) and falls silent again.
     before = len(alarms)
@@ -145,3 +161,18 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: set[str], i
                f"after {time.monotonic() - returned:.1f} s" if again else
                f"no new alarm within {REPORT_WITHIN_S:g} s of its last message",
                hint="A sender you reported is heard again: what must your watchdog forget then?")
+
+
+def _silences_before_alarms(heard: dict[str, list[float]], sender: str, alarms: list[str]) -> list[float]:
+    """For each alarm naming ``sender``: the longest the checker went without a message from it in the
+    ``SILENCE_S`` + 1 s before the alarm arrived [s]. A machine too busy to deliver the sender's
+    messages in time (to the checker and the watchdog alike) makes such a silence real."""
+    times = list(heard.get(sender, []))
+    arrivals = list(heard.get(ALARM_KEY, []))
+    silences = []
+    for text, arrived in zip(alarms, arrivals, strict=False):
+        if sender in text:
+            start = arrived - SILENCE_S - 1.0
+            points = [start, *(t for t in times if start < t < arrived), arrived]
+            silences.append(max(later - earlier for earlier, later in zip(points, points[1:], strict=False)))
+    return silences
