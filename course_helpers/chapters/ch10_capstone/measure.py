@@ -8,6 +8,7 @@ and durability of every endpoint from the live graph.
 
 from __future__ import annotations
 
+import statistics
 import time
 from dataclasses import dataclass, field
 
@@ -32,11 +33,23 @@ class Delivery:
     mean_age_ms: float
     callback_ms: list[float] = field(default_factory=list)  # a node's own time per frame [ms], if asked
     span_s: float = float("nan")  # from the first to the last stamp received [s]
+    gap_frames: list[float] = field(default_factory=list)  # between consecutive stamps [frame periods]
 
     @property
     def mean_callback_ms(self) -> float:
         """The mean of :attr:`callback_ms` [ms] (nan when none were collected)."""
         return sum(self.callback_ms) / len(self.callback_ms) if self.callback_ms else float("nan")
+
+    @property
+    def median_callback_ms(self) -> float:
+        """The median of :attr:`callback_ms` [ms]: unlike the mean, one callback that the operating
+        system paused (on a busy machine) barely moves it (nan when none were collected)."""
+        return statistics.median(self.callback_ms) if self.callback_ms else float("nan")
+
+    @property
+    def median_gap_frames(self) -> float:
+        """The median gap between consecutive stamps received [frame periods] (nan: fewer than 2)."""
+        return statistics.median(self.gap_frames) if self.gap_frames else float("nan")
 
     @property
     def frames_per_message(self) -> float:
@@ -111,7 +124,8 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
             rt.call_in_executor(rt.graph.destroy_subscription, timing)
     return Delivery(topic, expected_hz, elapsed, len(got), count_missed(got, expected_hz, elapsed),
                     1000.0 * sum(age) / len(age) if age else float("nan"), took,
-                    got[-1] - got[0] if got else float("nan"))
+                    got[-1] - got[0] if got else float("nan"),
+                    [(b - a) * expected_hz for a, b in zip(got, got[1:], strict=False)])
 
 
 def count_missed(stamps: list[float], expected_hz: float, seconds: float) -> int:
