@@ -186,9 +186,9 @@ def _run_the_lab(page, base: str, token: str) -> None:
     assert "Done" in status and "depth 1, 10 ms/sample: delivered" in status, status
     # A fast stream, set with the keyboard on the sliders: 2000 samples/s for 2 s, no processing time.
     panel.locator("button").filter(has_text=re.compile(r"^\s*best effort\s*$")).click()
-    _slide(panel, "processing", 0)
-    _slide(panel, "rate", 11)  # the 12th rate: 2000 Hz
-    _slide(panel, "duration", 38)  # 0.1 s + 38 steps of 0.05 s
+    _slide(panel, "processing", 0, "0")
+    _slide(panel, "rate", 11, "2000 Hz")  # the 12th rate
+    _slide(panel, "duration", 38, "2.00")  # 0.1 s + 38 steps of 0.05 s
     # the kernel answers each slider change with a new status line: wait for it (a busy kernel is slow)
     panel.locator(".qos-lab-status", has_text="2000 Hz x 1 KiB").wait_for(timeout=30_000)
     # Time every new picture in the page itself, as the browser shows it.
@@ -229,9 +229,16 @@ def _wait_until_finished(panel) -> None:
     panel.locator(".qos-lab-status").filter(has_text=last).first.wait_for(timeout=60_000)
 
 
-def _slide(panel, description: str, steps: int) -> None:
-    """Move a slider of the panel to its first value, then ``steps`` steps up, with the keyboard."""
-    handle = panel.locator(".widget-slider", has_text=description).locator(".noUi-handle")
-    handle.press("Home")
-    for _ in range(steps):
-        handle.press("ArrowRight")
+def _slide(panel, description: str, steps: int, shows: str) -> None:
+    """Move a slider of the panel to its first value, then ``steps`` steps up, with the keyboard, until
+    its readout ``shows`` the value (a busy kernel's echo of an earlier value can swallow a key press:
+    then the keys are pressed again)."""
+    slider = panel.locator(".widget-slider", has_text=description)
+    handle, readout = slider.locator(".noUi-handle"), slider.locator(".widget-readout")
+    for _attempt in range(3):
+        handle.press("Home")
+        for _ in range(steps):
+            handle.press("ArrowRight")
+        if poll_until(lambda: readout.inner_text().strip() == shows, 5.0, period=0.1):
+            return
+    raise AssertionError(f"the {description} slider shows {readout.inner_text()!r}, not {shows!r}")
