@@ -32,7 +32,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Strict nbval of the course, N times, beside a busy core.")
     parser.add_argument("--runs", type=int, default=5, help="how many complete runs (default 5)")
     parser.add_argument("--jobs", type=int, default=None,
-                        help="pytest workers (default: the Makefile's JOBS, as make test uses)")
+                        help="pytest workers (default: the Makefile's NB_JOBS, as make test uses)")
     parser.add_argument("--no-busy", action="store_true", help="without the CPU-bound process")
     args = parser.parse_args(argv)
     if not 1 <= args.runs <= 100:
@@ -46,7 +46,7 @@ def main(argv=None) -> int:
     passed = 0
     try:
         for run in range(1, args.runs + 1):
-            jobs = [] if args.jobs is None else [f"JOBS={args.jobs}"]
+            jobs = [] if args.jobs is None else [f"NB_JOBS={args.jobs}"]
             print(f"run {run}/{args.runs}: make notebooks {' '.join(jobs)} "
                   f"({'with' if busy else 'without'} a busy core) ...", flush=True)
             started = time.monotonic()
