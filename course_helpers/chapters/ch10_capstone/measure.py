@@ -42,9 +42,13 @@ class Delivery:
 
     @property
     def median_callback_ms(self) -> float:
-        """The median of :attr:`callback_ms` [ms]: unlike the mean, one callback that the operating
-        system paused (on a busy machine) barely moves it (nan when none were collected)."""
-        return statistics.median(self.callback_ms) if self.callback_ms else float("nan")
+        """The median time of the callbacks that :attr:`gap_frames` follow [ms] (nan when none).
+
+        The k-th time collected belongs to the k-th message, and the gap after the last message
+        falls outside the window, so its callback is left out; on a machine so busy that only a
+        few messages arrive, that one callback would otherwise decide the median."""
+        paired = self.callback_ms[:len(self.gap_frames)] or self.callback_ms
+        return statistics.median(paired) if paired else float("nan")
 
     @property
     def median_gap_frames(self) -> float:
@@ -76,7 +80,7 @@ class Delivery:
 
 def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0,
                      expected_hz: float = 30.0, qos: QoSProfile | int = 50,
-                     first_timeout: float = 8.0, timing_topic: str | None = None) -> Delivery:
+                     first_timeout: float = 20.0, timing_topic: str | None = None) -> Delivery:
     """Count messages on ``topic`` for ``seconds``; find missed frames from gaps in header stamps.
 
     Args: ``rt`` the runtime, ``topic`` a topic of stamped messages (``msg_type``),
@@ -88,7 +92,8 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
     0.3 s after the first message; if nothing arrives within ``first_timeout`` s, the result
     says 0 messages (all missed). The wait ends at the first message, so the default costs
     nothing when data flows; it leaves room for a just-spawned node to be matched and to
-    finish its first frame (up to about 3 s on two busy cores).
+    finish its first frame (about 3 s on two busy cores; more than 8 s while the grading tests ran
+    beside four other test workers).
     """
     stamps: list[float] = []
     ages: list[float] = []
