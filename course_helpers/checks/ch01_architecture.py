@@ -29,7 +29,6 @@ REPORT_WITHIN_S = 3.0  # the watchdog must report the killed talker this soon (i
 REPEAT_WINDOW_S = 1.0  # after the report: no second alarm about the same silence
 NODE_NAME = "silence_watchdog"
 SILENCE_S = 0.5  # the exercise's threshold: a sender quiet for longer is reported [s]
-ALARM_KEY = "/silent_talkers"  # where the checker's record of senders keeps the alarms' arrival times
 RETURN_MESSAGES = 10  # the checker talks again in the dead talker's name: this many messages...
 RETURN_PERIOD_S = 0.05  # ...this far apart (as fast as the talkers)
 
@@ -84,12 +83,11 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
             report.add("two talkers, one killed", False, "not run: the node must subscribe and publish first",
                        hint="Fix the criteria above, then check again.")
             return report
-        alarms: list[str] = []
+        alarms: list[tuple[float, str]] = []  # (when the checker got it, monotonic s; its text)
         heard: dict[str, list[float]] = {}  # sender -> when the checker heard it (monotonic s)
 
         def on_alarm(msg) -> None:
-            alarms.append(msg.data)
-            heard.setdefault(ALARM_KEY, []).append(time.monotonic())
+            alarms.append((time.monotonic(), msg.data))
 
         def on_chatter(msg) -> None:
             heard.setdefault(msg.data.split(":", 1)[0], []).append(time.monotonic())
@@ -109,7 +107,7 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
     return report
 
 
-def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: dict[str, list[float]],
+def _run_scenario(report: CheckReport, rt, alarms: list[tuple[float, str]], heard: dict[str, list[float]],
                   impostor) -> None:
     dead, alive = TALKERS
     # A talker killed by an earlier check stays in the graph for its lease; a namesake of it would
@@ -130,12 +128,12 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: dict[str, l
     # after a stall, when the watchdog's timer may not have run at all)
     poll_until(lambda: alarms or min(_tenths_heard(heard[name], started) for name in TALKERS) >= QUIET_TENTHS,
                10.0)
-    report.add("no alarm while both talkers talk", not alarms, f"got {alarms[0]!r}" if alarms else "",
+    report.add("no alarm while both talkers talk", not alarms, f"got {alarms[0][1]!r}" if alarms else "",
                hint="Report a sender only when it has been silent for more than SILENCE_S.")
     alarms.clear()
     children[dead].kill()  # SIGKILL: a crash, no goodbye
     killed = time.monotonic()
-    reported = poll_until(lambda: any(dead in a for a in alarms), REPORT_WITHIN_S)
+    reported = poll_until(lambda: _naming(alarms, dead), REPORT_WITHIN_S)
     after_s = time.monotonic() - killed
     still_listed = f"/{dead}" in rt.graph_nodes()
     report.add(f"reports {dead} within {REPORT_WITHIN_S:g} s of its crash", reported,
@@ -145,8 +143,8 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: dict[str, l
                     "what does your timer compare, ten times a second?")
     if not reported:
         return
-    sleep_unless(lambda: sum(dead in a for a in alarms) > 1, REPEAT_WINDOW_S)
-    repeats = sum(dead in a for a in alarms)
+    sleep_unless(lambda: len(_naming(alarms, dead)) > 1, REPEAT_WINDOW_S)
+    repeats = len(_naming(alarms, dead))
     report.add("reports that silence once", repeats == 1,
                "" if repeats == 1 else f"{repeats} alarms naming {dead}",
                hint="Keep track of the senders you have already reported (the skeleton's self.reported).")
@@ -163,25 +161,29 @@ def _run_scenario(report: CheckReport, rt, alarms: list[str], heard: dict[str, l
         impostor.publish(String(data=f"{dead}: {count}"))
         time.sleep(RETURN_PERIOD_S)
     returned = time.monotonic()
-    again = poll_until(lambda: any(dead in a for a in alarms[before:]), REPORT_WITHIN_S)
+    again = poll_until(lambda: _naming(alarms[before:], dead), REPORT_WITHIN_S)
     report.add(f"reports {dead} again after it talked again and fell silent", again,
                f"after {time.monotonic() - returned:.1f} s" if again else
                f"no new alarm within {REPORT_WITHIN_S:g} s of its last message",
                hint="A sender you reported is heard again: what must your watchdog forget then?")
 
 
-def _silences_before_alarms(heard: dict[str, list[float]], sender: str, alarms: list[str]) -> list[float]:
+def _naming(alarms: list[tuple[float, str]], sender: str) -> list[float]:
+    """When the checker got each alarm that names ``sender`` (monotonic s)."""
+    return [arrived for arrived, text in list(alarms) if sender in text]
+
+
+def _silences_before_alarms(heard: dict[str, list[float]], sender: str,
+                            alarms: list[tuple[float, str]]) -> list[float]:
     """For each alarm naming ``sender``: the longest the checker went without a message from it in the
     ``SILENCE_S`` + 1 s before the alarm arrived [s]. A machine too busy to deliver the sender's
     messages in time (to the checker and the watchdog alike) makes such a silence real."""
     times = list(heard.get(sender, []))
-    arrivals = list(heard.get(ALARM_KEY, []))
     silences = []
-    for text, arrived in zip(alarms, arrivals, strict=False):
-        if sender in text:
-            start = arrived - SILENCE_S - 1.0
-            points = [start, *(t for t in times if start < t < arrived), arrived]
-            silences.append(max(later - earlier for earlier, later in zip(points, points[1:], strict=False)))
+    for arrived in _naming(alarms, sender):
+        start = arrived - SILENCE_S - 1.0
+        points = [start, *(t for t in times if start < t < arrived), arrived]
+        silences.append(max(later - earlier for earlier, later in zip(points, points[1:], strict=False)))
     return silences
 
 
