@@ -3,7 +3,7 @@
 Run with ``.venv/bin/python benchmarks/lossy_link.py [--losses 0 5 10 20 40] [--rate 200] [--seconds 2]``.
 
 Each run is one real ``run_experiment`` on the ``'lossy_link'`` transport (both ends in a private
-network namespace whose loopback drops the given share of UDP datagrams; see
+network namespace whose loopback drops the given share of the datagrams sent to data ports; see
 ``course_helpers/chapters/ch08b_lab/link.py``), 1 KiB samples, KEEP_LAST deep enough for the whole
 run. Printed per loss level and reliability: the delivered share, the loss DDS saw on the way, p50
 and p99 latency, and p99 as a ratio to the same reliability's p99 at the lowest loss of this run

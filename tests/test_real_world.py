@@ -208,6 +208,50 @@ def test_a_rate_limited_link_drops_what_does_not_fit(rt):
     assert narrow.delivered_ratio < 0.5, narrow.summary()  # the bucket passes about a fifth
 
 
+
+COUNT_DATAGRAMS = textwrap.dedent("""
+    import socket, sys, time
+    ports = [int(p) for p in sys.argv[1:]]
+    receivers = []
+    for port in ports:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.bind(("127.0.0.1", port))
+        sock.settimeout(0.5)
+        receivers.append(sock)
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    for _ in range(200):  # (the receive buffers hold about 256 small datagrams)
+        for port in ports:
+            sender.sendto(b"x" * 64, ("127.0.0.1", port))
+        time.sleep(0.0005)
+    counts = []
+    for sock in receivers:
+        got = 0
+        try:
+            while True:
+                sock.recv(128)
+                got += 1
+        except TimeoutError:
+            counts.append(got)
+    print(*counts)
+""")
+
+
+@needs_namespaces
+def test_the_lossy_link_drops_data_ports_and_lets_discovery_through(rt):
+    """RTPS ports for one participant of domain 0: 7410 discovery (even) and 7411 data (odd)."""
+    from course_helpers.chapters.ch08b_lab.link import link_unavailable_reason, lossy_link
+
+    if link_unavailable_reason() is not None:
+        pytest.skip(link_unavailable_reason())
+    link = lossy_link(30)
+    _, output = link.run(sys.executable, "-c", COUNT_DATAGRAMS, "7410", "7411")
+    discovery, data = map(int, output.split())
+    assert discovery == 200, output  # metatraffic: nothing lost
+    margin = 5 * (0.3 * 0.7 * 200) ** 0.5  # five standard deviations of 200 coins that drop with 0.3
+    assert abs(data - 140) < margin, output  # user traffic: about 70 % arrive
+    lossy_link(0)
+    _, output = link.run(sys.executable, "-c", COUNT_DATAGRAMS, "7410", "7411")
+    assert output.split() == ["200", "200"], output  # loss 0: the rule is gone
 # ---------------------------------------------------------------------- ROS 1
 def test_ros1_missing_gives_one_line_with_the_install_command(monkeypatch, tmp_path):
     monkeypatch.setenv(ros1_module.PYTHON_ENV, sys.executable)  # the course's venv: no rospy there

@@ -19,7 +19,7 @@ HISTORY = ("keep_last", "keep_all")
 TRANSPORTS = {
     "shm": "shared memory (what Fast DDS uses between processes on one machine)",
     "udp": "UDP through the loopback interface only (as between two machines)",
-    "lossy_link": "UDP over a private network link that drops loss_percent of the datagrams "
+    "lossy_link": "UDP over a private network link that drops loss_percent of the data datagrams "
                   "(both ends in child processes inside a network namespace)",
 }
 MAX_LOSS_PERCENT = 50
@@ -47,7 +47,7 @@ class ExperimentConfig:
     duration_s: how long the publisher sends (it sends ``rate_hz * duration_s`` samples);
     late_joiner: the subscriber is created only after the publisher has sent everything;
     label: a name for tables and plots (default: :meth:`describe` builds one);
-    loss_percent: with transport 'lossy_link', the share of UDP datagrams the link drops (0..50);
+    loss_percent: with transport 'lossy_link', the share of data datagrams the link drops (0..50);
     link_mbit: with transport 'lossy_link', the link's capacity in Mbit/s (0: no limit).
     """
 
@@ -203,7 +203,7 @@ PRESETS: dict[str, dict] = {
         ],
     },
     "Wi-Fi link, 10 % loss": {
-        "what": "Both ends on a private network link that drops 10 % of the UDP datagrams, as a busy "
+        "what": "Both ends on a private network link that drops 10 % of the data datagrams, as a busy "
                 "Wi-Fi link can: 400 samples of 1 KiB at 400 Hz, KEEP_LAST 400 so that no queue "
                 "overflows. Best effort delivers about 90 % of them; reliable repairs every loss, and "
                 "the repairs show in its p99 latency.",

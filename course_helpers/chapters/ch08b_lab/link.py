@@ -4,13 +4,17 @@ Both ends run as child processes inside a network namespace of their own (:mod:`
 so they talk over that namespace's loopback interface and over UDP only (shared memory is off:
 Fast DDS would otherwise hand the samples over in memory, past the network). On that loopback
 
-* an nftables rule on the **input** hook drops ``loss_percent`` of the UDP datagrams at random, as
-  a noisy radio link loses frames: the sender never learns of it (a drop on the output hook would
-  return an error to the sender instead, which no network does);
+* an nftables rule on the **input** hook drops ``loss_percent`` of the UDP datagrams sent to a data
+  port at random, as a noisy radio link loses frames: the sender never learns of it (a drop on the
+  output hook would return an error to the sender instead, which no network does);
 * a token bucket (``tc qdisc ... tbf``) limits the link to ``link_mbit`` if asked.
 
-Everything is dropped alike: DDS discovery, data, heartbeats and acknowledgements. The link is made
-once per kernel and set for each run; it goes away with the kernel (its holder is a course child).
+RTPS's port formula (chapter 07) gives every participant an even port for discovery (metatraffic)
+and an odd one for user traffic, so the rule drops by the port's parity: samples, heartbeats and
+acknowledgements are lost alike, while discovery gets through, and each run starts measuring as soon
+as both ends are up instead of after a discovery slowed by a random number of lost announcements.
+The link is made once per kernel and set for each run; it goes away with the kernel (its holder is
+a course child).
 
 Both ends read :func:`link_env`'s Fast DDS profile: UDP on 127.0.0.1 only, and a reliable writer
 that sends its periodic heartbeat every ``HEARTBEAT_S`` instead of Fast DDS's 3 s. A lost sample is
@@ -42,8 +46,8 @@ def link_unavailable_reason() -> str | None:
 
 
 def lossy_link(loss_percent: int = 0, link_mbit: float = 0.0) -> netns.NetworkNamespace:
-    """The kernel's lossy link (made on first use), set to drop ``loss_percent`` % of UDP datagrams
-    and, with ``link_mbit`` > 0, to carry at most that many Mbit/s.
+    """The kernel's lossy link (made on first use), set to drop ``loss_percent`` % of the UDP datagrams
+    sent to odd (data) ports and, with ``link_mbit`` > 0, to carry at most that many Mbit/s.
 
     Raises CourseError (with the one-line reason) where namespaces cannot be made.
     """
@@ -56,8 +60,8 @@ def lossy_link(loss_percent: int = 0, link_mbit: float = 0.0) -> netns.NetworkNa
     rules = [f"flush table inet {NFT_TABLE}" if _has_table(link) else f"add table inet {NFT_TABLE}"]
     if loss_percent:
         rules += [f"add chain inet {NFT_TABLE} input {{ type filter hook input priority 0; policy accept; }}",
-                  f"add rule inet {NFT_TABLE} input meta l4proto udp numgen random mod 100 < "
-                  f"{int(loss_percent)} drop"]
+                  f"add rule inet {NFT_TABLE} input udp dport & 1 == 1 numgen random mod 100 < "
+                  f"{int(loss_percent)} drop"]  # odd ports: user traffic (see the module docstring)
     link.run("nft", "; ".join(rules))
     if link_mbit:
         burst = max(MIN_BURST_BYTES, int(link_mbit * 1e6 / 8 / 100))  # 10 ms of traffic, at least
