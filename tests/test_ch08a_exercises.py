@@ -19,7 +19,7 @@ from rclpy.qos import (
 )
 from std_msgs.msg import Bool, String
 
-from course_helpers.chapters.ch08_qos.liveliness import seconds_without_writer
+from course_helpers.chapters.ch08_qos.liveliness import blind_spells, seconds_without_writer, watched_downtime
 from course_helpers.checks.ch08_qos import (
     check_channel_qos,
     check_deadline_watchdog,
@@ -463,9 +463,22 @@ def test_time_without_a_writer_counts_only_the_window_and_starts_from_the_last_s
     assert seconds_without_writer(changes, 4.0, 12.0) == pytest.approx(4.5)  # 4.5-9.0
 
 
+def test_time_the_watcher_could_not_see_is_left_out_of_the_judgement():
+    # A heartbeat asserting every 2 s with a 0.5 s lease: alive 0-0.5, 2.0-2.5, 4.0-4.5. The watcher's
+    # executor was held up from 0.4 s to 1.9 s, so the loss at 0.5 s reached it only at 1.9 s.
+    changes = [(0.0, 1), (1.9, 0), (2.0, 1), (2.5, 0), (4.0, 1)]
+    ticks = [t / 100 for t in range(0, 451, 5) if not 40 < t < 190]
+    assert blind_spells(ticks, 0.0, 4.5, 0.15) == [(0.4, 1.9)]
+    assert seconds_without_writer(changes, 0.0, 3.0) == pytest.approx(0.6)  # what the late event made of it
+    down, seen = watched_downtime(changes, ticks, 0.0, 4.5, 0.15)
+    assert seen == pytest.approx(3.0) and down == pytest.approx(1.6)  # 1.9-2.0 and 2.5-4.0
+    assert down > 1 / 6 * seen  # more than one of six leases: the checker's verdict is a failure
+    assert seconds_without_writer(changes, 0.0, 4.5, [(0.0, 4.5)]) == 0.0  # nothing seen, nothing judged
+
+
 def test_heartbeat_checker_rejects_a_seldom_heartbeat_and_a_monitor_that_never_says_alive(rt):
     report = check_heartbeat(SeldomHeartbeat, LostOnlyMonitor, rt)
-    assert _failed(report) == ["heartbeat: alive through 6 leases, with at most 2 of them lost",
+    assert _failed(report) == ["heartbeat: alive through 6 leases, with at most 1 of them lost",
                                "monitor: publishes 'alive' when the heartbeat is back"], report.summary()
 
 

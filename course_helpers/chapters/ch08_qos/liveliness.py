@@ -7,7 +7,8 @@ publishers run in child processes, so that liveliness travels between two partic
 * :func:`watch_quiet_spell` - :class:`~.publishers.LivelinessTalker` goes quiet on an AUTOMATIC and a
   MANUAL_BY_TOPIC topic while its process lives, and reports ``start`` and its ``lost`` events;
 * :func:`seconds_without_writer` - from a subscription's liveliness events, how long in a window no
-  writer was alive (the heartbeat checker's measure).
+  writer was alive (the heartbeat checker's measure), leaving out the :func:`blind_spells` in which
+  the watcher's own executor did not run (its events then arrive late, all at once).
 """
 
 from __future__ import annotations
@@ -159,20 +160,48 @@ def plot_liveliness(results: list[LivelinessResult], titles: list[str]):
     return fig
 
 
-def seconds_without_writer(changes: list[tuple], start: float, end: float) -> float:
-    """Seconds of [``start``, ``end``] in which no writer was alive.
+def seconds_without_writer(changes: list[tuple], start: float, end: float,
+                           leave_out: list[tuple[float, float]] = ()) -> float:
+    """Seconds of [``start``, ``end``] in which no writer was alive, outside the ``leave_out`` spells.
 
     ``changes`` holds (time, writers alive, ...) for every liveliness event, in time order; the
     count before the first event is 0.
     """
     alive = next((change[1] for change in reversed(changes) if change[0] <= start), 0)
-    down, since = 0.0, start
+    down: list[tuple[float, float]] = []
+    since = start
     for when, count, *_rest in changes:
         if when <= start:
             continue
         if when >= end:
             break
         if alive == 0:
-            down += when - since
+            down.append((since, when))
         alive, since = count, when
-    return down + (end - since if alive == 0 else 0.0)
+    if alive == 0:
+        down.append((since, end))
+    return sum(b - a - _overlap((a, b), leave_out) for a, b in down)
+
+
+def blind_spells(ticks: list[float], start: float, end: float, longest_s: float) -> list[tuple[float, float]]:
+    """The spells of [``start``, ``end``] between two runs of a watcher's timer (``ticks``: when it
+    ran) that lasted longer than ``longest_s``: its executor was held up, and events were late."""
+    points = [start, *(t for t in ticks if start < t < end), end]
+    return [(a, b) for a, b in zip(points, points[1:], strict=False) if b - a > longest_s]
+
+
+def seen_seconds(ticks: list[float], start: float, end: float, longest_s: float) -> float:
+    """Seconds of [``start``, ``end``] outside the :func:`blind_spells`."""
+    return end - start - sum(b - a for a, b in blind_spells(ticks, start, end, longest_s))
+
+
+def watched_downtime(changes: list[tuple], ticks: list[float], start: float, end: float,
+                     longest_s: float) -> tuple[float, float]:
+    """(seconds without a live writer, seconds watched) of [``start``, ``end``], both outside the
+    :func:`blind_spells` of the watcher's timer (``ticks``)."""
+    blind = blind_spells(ticks, start, end, longest_s)
+    return seconds_without_writer(changes, start, end, blind), end - start - sum(b - a for a, b in blind)
+
+
+def _overlap(span: tuple[float, float], spells) -> float:
+    return sum(max(0.0, min(span[1], b) - max(span[0], a)) for a, b in spells)
