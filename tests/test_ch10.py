@@ -10,7 +10,7 @@ from action_msgs.msg import GoalStatus
 from course_interfaces.action import Navigate
 from course_interfaces.msg import EStop
 from course_interfaces.srv import PickItem
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, PointStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.action import ActionClient
 from rclpy.node import Node
@@ -381,3 +381,25 @@ def test_the_fleet_checker_fails_each_criterion_on_a_plausible_mistake(rt, wrong
     hint = next(c.hint for c in report.criteria if c.name == criterion and not c.passed)
     assert hint  # a failed criterion says where to look
     assert rt.nodes() == [] and sorted(rt.children()) == []
+
+
+class SlowStampedSource(Node):
+    """Publishes a stamped point every 0.6 s: a window of 1 s holds at most two of them."""
+
+    def __init__(self):
+        super().__init__("slow_stamped_source")
+        self.publisher = self.create_publisher(PointStamped, "slow_stamped", 10)
+        self.timer = self.create_timer(0.6, self.tick)
+
+    def tick(self):
+        msg = PointStamped()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.publisher.publish(msg)
+
+
+def test_a_window_goes_on_until_it_holds_gaps_to_measure(rt):
+    rt.add(SlowStampedSource)
+    delivery = cp.measure_delivery(rt, "/slow_stamped", seconds=1.0, expected_hz=30.0)
+    assert delivery.received >= 3 and len(delivery.gap_frames) >= 2, delivery  # two gaps, not none
+    assert 1.0 < delivery.seconds < 1.0 + 10.0
+    assert 0.6 * 30 * 0.8 < delivery.median_gap_frames < 0.6 * 30 * 1.25, delivery

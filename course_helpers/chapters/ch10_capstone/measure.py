@@ -19,6 +19,10 @@ from std_msgs.msg import Float64
 from course_helpers.core.errors import WaitTimeout
 from course_helpers.core.names import full_name, is_hidden
 from course_helpers.core.qos_dict import policy_name
+from course_helpers.core.waiting import poll_until
+
+MIN_MESSAGES = 3  # a window holds at least this many messages (two gaps between stamps)...
+MIN_MESSAGES_WAIT_S = 10.0  # ...if they come within this much longer [s]
 
 
 @dataclass
@@ -89,8 +93,9 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
     took [ms] (perception's ``~/processing_time_ms``), read in the same window.
     Returns: a :class:`Delivery`; its missed frames come from :func:`count_missed`, its age
     is receive time minus the camera's stamp (same machine, same clock). The window starts
-    0.3 s after the first message; if nothing arrives within ``first_timeout`` s, the result
-    says 0 messages (all missed). The wait ends at the first message, so the default costs
+    0.3 s after the first message and lasts ``seconds``, or longer until :data:`MIN_MESSAGES` came
+    (at most :data:`MIN_MESSAGES_WAIT_S` s more); if nothing arrives within ``first_timeout`` s, the
+    result says 0 messages (all missed). The wait ends at the first message, so the default costs
     nothing when data flows; it leaves room for a just-spawned node to be matched and to
     finish its first frame (about 3 s on two busy cores; more than 8 s while the grading tests ran
     beside four other test workers).
@@ -119,6 +124,8 @@ def measure_delivery(rt, topic: str, msg_type=PointStamped, seconds: float = 3.0
         timings.clear()
         started = time.monotonic()
         time.sleep(seconds)
+        # a slow callback on a very busy machine: go on until there is a gap to measure, within reason
+        poll_until(lambda: len(stamps) >= MIN_MESSAGES, max(seconds, MIN_MESSAGES_WAIT_S))
         elapsed = time.monotonic() - started
         got = sorted(stamps)
         age = list(ages)
