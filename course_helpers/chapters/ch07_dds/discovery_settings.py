@@ -115,8 +115,8 @@ def compare_discovery(rt, repeats: int = 6, timeout_s: float = PROBE_TIMEOUT_S) 
     probes = [_child_label("probe", *place) for place in envs]
     timings: dict[str, list[DiscoveryTiming]] = {setting: [] for setting in SETTINGS}
     try:
-        started = [rt.spawn(_child_label("anchor", *place), DiscoveryAnchor, env=env)
-                   for place, env in envs.items()]
+        started = [rt.spawn(label, DiscoveryAnchor, env=env)
+                   for label, env in zip(anchors, envs.values(), strict=True)]
         for anchor in started:  # they start side by side
             anchor.wait_for_report("ready", 30)
         time.sleep(ANCHOR_SETTLE_S)

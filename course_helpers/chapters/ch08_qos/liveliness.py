@@ -199,8 +199,8 @@ def watched_downtime(changes: list[tuple], ticks: list[float], start: float, end
                      longest_s: float) -> tuple[float, float]:
     """(seconds without a live writer, seconds watched) of [``start``, ``end``], both outside the
     :func:`blind_spells` of the watcher's timer (``ticks``)."""
-    blind = blind_spells(ticks, start, end, longest_s)
-    return seconds_without_writer(changes, start, end, blind), end - start - sum(b - a for a, b in blind)
+    return (seconds_without_writer(changes, start, end, blind_spells(ticks, start, end, longest_s)),
+            seen_seconds(ticks, start, end, longest_s))
 
 
 def _overlap(span: tuple[float, float], spells) -> float:
