@@ -21,7 +21,7 @@ NOTEBOOK = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__
                         "notebooks", "07_dds_and_discovery.ipynb")
 
 
-def test_discovery_comparison_uses_domains_of_its_own_and_bounds_the_tuned_wait(rt):
+def test_discovery_comparison_uses_two_own_domains_and_bounds_the_tuned_wait(rt):
     comparison = dds.compare_discovery(rt, repeats=3)
     assert set(comparison.timings) == set(dds.SETTINGS)
     for setting in dds.SETTINGS:
@@ -29,10 +29,9 @@ def test_discovery_comparison_uses_domains_of_its_own_and_bounds_the_tuned_wait(
         assert all(t.create_node_s > 0 for t in comparison.timings[setting])
     assert max(comparison.seconds("course")) < 1.0  # bounded by the 0.1 s period, plus load
     assert max(comparison.seconds("Fast DDS default")) < 2 * DEFAULT_ANNOUNCEMENT_S
-    count = dds.discovery_settings.LANES * len(dds.SETTINGS)  # an anchor's domain per lane and setting
-    domains = dds.discovery_settings._comparison_domains(count)
-    assert len(set(domains)) == count and rt.domain.domain_id not in domains
-    assert dds.discovery_settings._comparison_domains(count) == domains  # re-running reuses them
+    domains = dds.discovery_settings._comparison_domains()
+    assert len(set(domains)) == 2 and rt.domain.domain_id not in domains
+    assert dds.discovery_settings._comparison_domains() == domains  # re-running reuses them
     assert not rt.children()  # anchors and probes are stopped
 
 

@@ -2,9 +2,8 @@
 
 :func:`compare_discovery` times fresh probe processes (:func:`.discovery.discovery_probe`) against
 an anchor node in a child process, once with Fast DDS's default discovery settings and once with
-the course's profile, each set-up in ROS domains of its own so the two never meet. Probes of both
-set-ups start together, so a busy moment on the machine hits both alike; and three lanes run side by
-side, each with its own anchors in its own domains, so that six probes a setting take the time of two.
+the course's profile, each set-up in a ROS domain of its own so the two never meet. Probes of both set-ups
+start together, so a busy moment on the machine hits both alike.
 
 :func:`listen_to_announcements` measures what the announcements cost: it binds plain UDP sockets
 to the discovery ports of participants that do not exist, in a domain where one lone participant
@@ -42,8 +41,7 @@ SETTINGS = {
 }
 PROBE_TIMEOUT_S = 6.5  # s; two default announcement periods and a margin
 ANCHOR_SETTLE_S = 1.0  # s; past the anchors' first, fast announcements (5 at 0.1 s), into the period
-LANES = 3  # probes of one setting that run at the same time, each with an anchor in a domain of its own
-_domains: list[int] = []  # the domains of the comparisons, reserved once per process
+_domains: list[int] = []  # the two domains of the comparison, reserved once per process
 
 
 # RTPS ports of a domain (the RTPS specification's defaults, which Fast DDS uses)
@@ -52,13 +50,11 @@ def discovery_port(domain: int, participant_id: int) -> int:
     return 7400 + 250 * domain + 10 + 2 * participant_id
 
 
-def _comparison_domains(count: int = 2) -> list[int]:
-    """``count`` domains of this process's own (the first: its spare one), reserved once and kept."""
+def _comparison_domains() -> list[int]:
     if not _domains:
-        _domains.append(reserve_spare_domain())
-    while len(_domains) < count:
-        _domains.append(reserve_domain(exclude=tuple(_domains)))
-    return _domains[:count]
+        spare = reserve_spare_domain()
+        _domains.extend([spare, reserve_domain(exclude=(spare,))])
+    return _domains
 
 
 def _env(setting: str, domain: int, log_dir: str) -> dict:
@@ -99,33 +95,29 @@ def compare_discovery(rt, repeats: int = 6, timeout_s: float = PROBE_TIMEOUT_S) 
 
     Args:
         rt: the kernel's runtime (it starts the children; its own node takes no part).
-        repeats: probe processes per setting, 2..20. In a round, a probe of each setting starts at the
-            same time in each of :data:`LANES` lanes (a lane: an anchor per setting, each in a domain
-            of its own).
+        repeats: probe processes per setting, 2..20; a probe of each setting starts at the same time.
         timeout_s: how long each probe looks for the anchor.
 
     Returns a :class:`DiscoveryComparison`.
     """
     if isinstance(repeats, bool) or not isinstance(repeats, int) or not 2 <= repeats <= 20:
         raise CourseError(f"repeats must be a whole number 2..20, got {repeats!r}")
-    domains = iter(_comparison_domains(LANES * len(SETTINGS)))
-    envs = {(lane, setting): _env(setting, next(domains), rt.log_dir)
-            for lane in range(LANES) for setting in SETTINGS}
-    anchors = [_child_label("anchor", *place) for place in envs]
-    probes = [_child_label("probe", *place) for place in envs]
+    domains = dict(zip(SETTINGS, _comparison_domains(), strict=True))
+    labels = {setting: "default" if setting == "Fast DDS default" else "course" for setting in SETTINGS}
+    envs = {setting: _env(setting, domains[setting], rt.log_dir) for setting in SETTINGS}
+    anchors_of = {s: f"{labels[s]}_anchor" for s in SETTINGS}
+    probes_of = {s: f"{labels[s]}_probe" for s in SETTINGS}
+    anchors, probes = list(anchors_of.values()), list(probes_of.values())
     timings: dict[str, list[DiscoveryTiming]] = {setting: [] for setting in SETTINGS}
     try:
-        started = [rt.spawn(label, DiscoveryAnchor, env=env)
-                   for label, env in zip(anchors, envs.values(), strict=True)]
-        for anchor in started:  # they start side by side
-            anchor.wait_for_report("ready", 30)
+        for setting in SETTINGS:
+            rt.spawn(anchors_of[setting], DiscoveryAnchor, env=envs[setting]).wait_for_report("ready", 30)
         time.sleep(ANCHOR_SETTLE_S)
-        for first in range(0, repeats, LANES):  # a round: one probe per setting in each lane
-            lanes = range(min(LANES, repeats - first))
-            children = {(lane, setting): rt.spawn(_child_label("probe", lane, setting), discovery_probe,
-                                                  params={"timeout_s": timeout_s}, env=envs[lane, setting])
-                        for lane in lanes for setting in SETTINGS}
-            for (_, setting), child in children.items():
+        for _ in range(repeats):
+            children = {setting: rt.spawn(probes_of[setting], discovery_probe,
+                                          params={"timeout_s": timeout_s}, env=envs[setting])
+                        for setting in SETTINGS}
+            for setting, child in children.items():
                 result = child.wait_for_report("result", timeout_s + 30, f"the result of a {setting} probe")
                 timings[setting].append(DiscoveryTiming(**result))
             running = list(children.values())
@@ -134,11 +126,6 @@ def compare_discovery(rt, repeats: int = 6, timeout_s: float = PROBE_TIMEOUT_S) 
     finally:
         rt.stop_children(anchors + probes)
     return DiscoveryComparison(timings, timeout_s)
-
-
-def _child_label(role: str, lane: int, setting: str) -> str:
-    """The label of an anchor or probe process: ``course_probe_1``, ``default_anchor_0``..."""
-    return f"{'default' if setting == 'Fast DDS default' else 'course'}_{role}_{lane}"
 
 
 # ---------------------------------------------------------------------- what announcing costs
