@@ -50,3 +50,24 @@ def test_without_solutions_the_passing_report_says_why(capsys):
 def test_a_solution_that_is_a_value_is_refused_with_a_reason():
     with pytest.raises(CourseError, match="is a value, not a function or class"):
         solution_source("ch04_services", "__name__")
+
+
+def test_running_the_passing_report_again_shows_the_report_the_kernel_measured(capsys):
+    from course_helpers.checks import CheckReport
+
+    runs = []
+
+    def counting(cls):  # a check that costs nothing, so that the test can count its runs
+        runs.append(cls.__name__)
+        report = CheckReport("Battery server")
+        report.add("answers every request", True, f"run {len(runs)}")
+        return report
+
+    first = show_passing_report(counting, "ch04_services", "BatteryMonitor")
+    assert runs == ["BatteryMonitor"] and "shown again" not in capsys.readouterr().out
+    again = show_passing_report(counting, "ch04_services", "BatteryMonitor")
+    shown = capsys.readouterr().out
+    assert again is first and runs == ["BatteryMonitor"]  # not run a second time
+    assert "run 1" in shown and "checked in this kernel at" in shown and "shown again" in shown
+    anew = show_passing_report(counting, "ch04_services", "BatteryMonitor", recheck=True)
+    assert len(runs) == 2 and anew is not first and "run 2" in capsys.readouterr().out

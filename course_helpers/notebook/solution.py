@@ -12,6 +12,7 @@ from __future__ import annotations
 import html
 import importlib
 import inspect
+import time
 
 from course_helpers.core.errors import CourseError
 
@@ -68,12 +69,15 @@ def show_solution(module: str, name: str, label: str = "Show the reference solut
     return box
 
 
-def show_passing_report(check, module: str, name: str):
+def show_passing_report(check, module: str, name: str, recheck: bool = False):
     """Show, collapsed, what a passing checker report looks like, without showing the solution code.
 
     ``check`` is called with the reference solution ``name`` of ``solutions/<module>.py`` (for
     example ``check_tilt_warning``, or ``lambda cls: check_x(cls, rt)``) and must return a
-    ``CheckReport``. The report is real: the checker runs the reference against real nodes just now.
+    ``CheckReport``. The report is real: the checker runs the reference against real nodes. A
+    kernel runs each such check once: running the cell again (the same check of the same
+    reference) shows the report it measured, with the time it was measured, instead of spending
+    the check's seconds again; ``recheck=True`` runs it anew.
     Displayed inside a closed ``<details>`` element, so a student opens it only when they want to.
     Returns the report, or None when this copy of the course has no solutions (a student release).
     Raises :class:`CourseError` with the report when the reference does not pass.
@@ -86,20 +90,41 @@ def show_passing_report(check, module: str, name: str):
         note = f"(A passing report is not available here: {exc}.)"
         display({"text/plain": note, "text/html": f"<p><i>{html.escape(note)}</i></p>"}, raw=True)
         return None
-    report = check(solution)
-    if not hasattr(report, "summary"):
-        raise CourseError("show_passing_report: the check must return a CheckReport, "
-                          f"got {type(report).__name__}")
-    if not report.passed:  # never save a failing reference under "what passing looks like"
-        raise CourseError(f"the reference solution {module}.{name} did not pass its own checker:\n"
-                          f"{report.summary()}")
+    key = (module, name, _code_key(getattr(check, "__code__", None)) or id(check))
+    if key in _passing_reports and not recheck:
+        report, checked_at = _passing_reports[key]
+        again = (f"checked in this kernel at {checked_at}, shown again; "
+                 "show_passing_report(..., recheck=True) checks it anew")
+    else:
+        report = check(solution)
+        if not hasattr(report, "summary"):
+            raise CourseError("show_passing_report: the check must return a CheckReport, "
+                              f"got {type(report).__name__}")
+        if not report.passed:  # never save a failing reference under "what passing looks like"
+            raise CourseError(f"the reference solution {module}.{name} did not pass its own checker:\n"
+                              f"{report.summary()}")
+        _passing_reports[key] = (report, time.strftime("%H:%M:%S"))
+        again = ""
     title = f"what passing looks like: {report.exercise}"
     body = (f"<details><summary>{html.escape(title.capitalize())} (the reference solution, checked "
             f"against real nodes; its code stays hidden)</summary>{report._repr_html_()}</details>")
-    display({"text/plain": f"[record] {title}\n{report.summary()}",
+    html_again = f"<p><i>({html.escape(again)})</i></p>" if again else ""
+    display({"text/plain": f"[record] {title}\n{report.summary()}" + (f"\n({again})" if again else ""),
              "text/html": f"<div class='course-record' data-record='{html.escape(title, quote=True)}'>"
-                          f"{body}</div>"}, raw=True)
+                          f"{body}{html_again}</div>"}, raw=True)
     return report
+
+
+_passing_reports: dict = {}  # (module, name, the check's code) -> (passing report, when it was checked)
+
+
+def _code_key(code):
+    """What a check's code does, comparable across re-runs of its cell (each run compiles it anew):
+    its bytecode, names and constants, nested code included. None for an object without code."""
+    if code is None:
+        return None
+    consts = tuple(_code_key(c) if hasattr(c, "co_code") else repr(c) for c in code.co_consts)
+    return (code.co_code, code.co_names, code.co_varnames, code.co_freevars, consts)
 
 
 def _solution_object(module: str, name: str):
