@@ -113,7 +113,7 @@ image:
 	$(PYTHON) -m tools.container.build_image --tag $(IMAGE)
 
 test-image: setup
-	$(PY) -m tools.container.run_image_tests --tag $(IMAGE) --jobs $(JOBS)
+	$(PY) -m tools.container.run_image_tests --tag $(IMAGE) --jobs $(NB_JOBS)
 
 # The course website from the committed notebooks (nothing executed, nothing downloaded).
 book: setup

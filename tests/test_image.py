@@ -51,7 +51,7 @@ ARTIFACTS = REPO / "tests" / "artifacts"
 COURSE = "/opt/ros2-course"
 HOME = "/home/jovyan"
 WORK = f"{HOME}/ros2-course-work"
-JOBS = os.environ.get("COURSE_IMAGE_JOBS", "5")  # nbval workers inside the container (make's JOBS)
+JOBS = os.environ.get("COURSE_IMAGE_JOBS", "6")  # nbval workers inside the container (make's NB_JOBS)
 
 if not IMAGE:
     pytest.skip("no image to test: `make test-image` builds the course's image and runs these tests "

@@ -9,7 +9,7 @@
 
 Exits non-zero when the build or a test fails. Run it with the course's venv (``make test-image``).
 
-    python -m tools.container.run_image_tests [--tag ros2-course] [--jobs 5] [--no-cache]
+    python -m tools.container.run_image_tests [--tag ros2-course] [--jobs 6] [--no-cache]
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def test_seconds(junit: Path) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--tag", default=DEFAULT_TAG, help=f"the image's name (default {DEFAULT_TAG})")
-    parser.add_argument("--jobs", type=int, default=5, help="nbval workers inside the container")
+    parser.add_argument("--jobs", type=int, default=6, help="nbval workers in the container (NB_JOBS)")
     parser.add_argument("--no-cache", action="store_true", help="build every step afresh")
     args = parser.parse_args(argv)
     OUT.mkdir(parents=True, exist_ok=True)
