@@ -20,7 +20,7 @@ from course_helpers.chapters.ch09_packages import (
     stop_process,
 )
 from course_helpers.chapters.ch09_packages.progress import BuildSteps, short_line
-from course_helpers.checks.ch09_packages import check_package
+from course_helpers.checks.ch09_packages import DEPENDENCIES, EXECUTABLE, NODE, PACKAGE, TOPIC, check_package
 from course_helpers.nodes import Talker
 from course_helpers.solutions.ch09_packages import reference_package
 
@@ -78,34 +78,100 @@ def test_workspace_rerun_replaces_the_old_one(rt):
         second.cleanup()
 
 
-def test_package_checker_accepts_reference_and_rejects_wrong_ones(rt):
+# --------------------------------------------------------------------- checker: a wrong package per criterion
+FILES_THERE = "the files of an ament_python package are there"
+NAMED = f"package.xml names {PACKAGE} and declares the ament_python build type"
+DEPENDS = f"package.xml declares what the node imports ({', '.join(DEPENDENCIES)})"
+IDENTIFIED = "colcon identified an ament_python package"
+FINDS = f"`ros2 run {PACKAGE} {EXECUTABLE}` finds the executable"
+SHOWS_NODE = f"its process shows node {NODE} in the graph"
+# the checker reports these only when they fail, so the reference's report does not name them
+ONLY_WHEN_FAILED = {"the package is a dict of files", "package.xml is valid XML",
+                    "the files can be written into src/"}
+# Not covered: "no other /heartbeat runs before the package starts" fails on the notebook's graph, not on a
+# package (test below); "the executable starts" cannot fail once the executable was found (the process
+# started is this venv's Python, which then execs the script).
+MODULE = f"{PACKAGE}/heartbeat.py"
+
+
+def _failed(report) -> set[str]:
+    return {c.name for c in report.criteria if not c.passed}
+
+
+def _covered(table) -> set[str]:
+    return set().union(*(param.values[1] for param in table))
+
+
+def _changed(path: str, old: str, new: str):
+    """A wrong package: the reference's files with ``old`` replaced by ``new`` in ``path``."""
+    def make(files: dict) -> dict:
+        assert old in files[path], (path, old)
+        return {**files, path: files[path].replace(old, new)}
+    return make
+
+
+def _without(path: str):
+    return lambda files: {name: text for name, text in files.items() if name != path}
+
+
+NO_ENTRY_POINT = _changed("setup.py", f"'{EXECUTABLE} = {PACKAGE}.heartbeat:main',", "")
+SCRIPTS_IN_BIN = _changed("setup.cfg", f"install_scripts=$base/lib/{PACKAGE}", "install_scripts=$base/bin")
+
+PACKAGE_WRONG = [
+    pytest.param(lambda files: list(files.items()), {"the package is a dict of files"}, id="list-of-pairs"),
+    pytest.param(_without("setup.cfg"), {FILES_THERE}, id="no-setup-cfg"),
+    pytest.param(_without(f"resource/{PACKAGE}"), {FILES_THERE}, id="no-marker"),
+    pytest.param(_changed("package.xml", "</license>", "<license>"), {"package.xml is valid XML"},
+                 id="unclosed-tag"),
+    pytest.param(_changed("package.xml", "<build_type>ament_python<", "<build_type>ament_cmake<"), {NAMED},
+                 id="ament-cmake"),
+    pytest.param(_changed("package.xml", f"<name>{PACKAGE}<", "<name>heartbeat<"), {NAMED}, id="other-name"),
+    pytest.param(_changed("package.xml", "  <exec_depend>std_msgs</exec_depend>\n", ""), {DEPENDS},
+                 id="no-std-msgs-depend"),
+    pytest.param(lambda files: {**files, f"resource/{PACKAGE}": None}, {"the files can be written into src/"},
+                 id="marker-is-none"),
+    pytest.param(_changed("setup.py", "['package.xml']", "['package.xml', 'launch/heartbeat.launch.py']"),
+                 {"colcon build succeeds"}, id="lists-a-missing-file"),
+    pytest.param(_changed("package.xml", "student@example.com", "nobody"), {IDENTIFIED}, id="bad-email"),
+    pytest.param(NO_ENTRY_POINT, {FINDS}, id="no-entry-point"),
+    pytest.param(SCRIPTS_IN_BIN, {FINDS}, id="scripts-in-bin"),
+    pytest.param(_changed("setup.py", "heartbeat:main'", "heartbeat:run'"), {SHOWS_NODE},
+                 id="wrong-function"),
+    pytest.param(_changed(MODULE, "__init__('heartbeat')", "__init__('heartbeat_node')"), {SHOWS_NODE},
+                 id="other-node-name"),  # a report, not a WaitTimeout out of the checker
+    pytest.param(_changed(MODULE, "self.publisher.publish(", "print("),
+                 {f"messages arrive on {TOPIC} from the packaged node"}, id="never-publishes"),
+    pytest.param(_changed(MODULE, "except (KeyboardInterrupt, ExternalShutdownException):",
+                          "except ExternalShutdownException:"),
+                 {"Ctrl+C stops it cleanly (exit code 0)"}, id="no-keyboard-interrupt"),
+]
+
+
+def test_package_checker_accepts_the_reference_and_every_criterion_has_a_wrong_package(rt):
     report = check_package(reference_package())
     assert report.passed, report.summary()
+    assert {c.name for c in report.criteria} | ONLY_WHEN_FAILED <= _covered(PACKAGE_WRONG)
 
-    no_entry_point = reference_package()
-    no_entry_point["setup.py"] = no_entry_point["setup.py"].replace(
-        "'heartbeat = robot_heartbeat.heartbeat:main',", "")
-    report = check_package(no_entry_point)
+
+@pytest.mark.parametrize("make_wrong_files, failing", PACKAGE_WRONG)
+def test_package_checker_fails_each_criterion_on_a_wrong_package(rt, make_wrong_files, failing):
+    report = check_package(make_wrong_files(reference_package()))
     assert not report.passed
-    failed = [c for c in report.criteria if not c.passed]
-    assert failed[0].name == "`ros2 run robot_heartbeat heartbeat` finds the executable"
-    assert "console_scripts" in failed[0].hint
+    assert failing <= _failed(report), report.summary()
 
-    bad_manifest = reference_package()
-    bad_manifest["package.xml"] = bad_manifest["package.xml"].replace("student@example.com", "nobody")
-    failed = {c.name for c in check_package(bad_manifest).criteria if not c.passed}
-    assert failed == {"colcon identified an ament_python package"}
 
+def test_package_checker_hint_tells_a_missing_entry_point_from_a_wrong_setup_cfg(rt):
+    for make_wrong_files, hint in ((NO_ENTRY_POINT, "console_scripts"), (SCRIPTS_IN_BIN, "install_scripts")):
+        failed = [c for c in check_package(make_wrong_files(reference_package())).criteria if not c.passed]
+        assert failed[0].name == FINDS and hint in failed[0].hint
+
+
+def test_package_checker_refuses_to_run_beside_the_notebooks_own_node(rt):
     # The notebook's own /heartbeat node would fake a pass: the checker refuses to run then.
     rt.add(Talker, name="heartbeat", topic="heartbeat", console=False)
     report = check_package(reference_package())
     assert not report.passed and "already in the graph" in report.criteria[-1].detail
     rt.remove("/heartbeat")
-
-    missing_files = reference_package()
-    del missing_files["resource/robot_heartbeat"]
-    assert not check_package(missing_files).passed
-    assert not check_package("not a dict").passed
 
 
 def test_workspace_rejects_bad_names():

@@ -149,7 +149,7 @@ def _run_and_listen(report: CheckReport, rt, ws: Workspace, package: str, execut
         try:
             wait_for_process_node(child, node, timeout=15.0)
             appeared, detail = True, ""
-        except CourseError as exc:
+        except (CourseError, WaitTimeout) as exc:  # it exited, or it runs without the node
             appeared = False
             tail = [line for line in child.log().splitlines() if line.strip()][-3:]
             detail = "; ".join(tail) if tail else str(exc).splitlines()[0]
