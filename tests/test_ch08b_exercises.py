@@ -9,37 +9,95 @@ from __future__ import annotations
 import html
 
 import pytest
-from rclpy.qos import Duration, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import (
+    Duration,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+    qos_profile_system_default,
+)
 
 from course_helpers.chapters.ch08b_lab import ExperimentConfig, qos_lab
-from course_helpers.checks.ch08b_lab import BURST_SAMPLES, burst_config, check_burst_qos
+from course_helpers.checks.ch08b_lab import (
+    BURST_SAMPLES,
+    MAX_LOST,
+    MAX_P99_MS,
+    burst_config,
+    check_burst_qos,
+)
 from course_helpers.solutions.ch08b_lab import burst_qos
 
+PROFILE = "the QoS is a profile the lab can run"
+RAN = "the experiment ran"
+SENT = f"the driver sent all {BURST_SAMPLES} samples"
+LOSS = f"loss target: at most {MAX_LOST} of the {BURST_SAMPLES} samples lost"
+LATENCY = f"latency target: p99 at most {MAX_P99_MS:g} ms"
 
-def _failed(report) -> list[str]:
-    return [c.name for c in report.criteria if not c.passed]
+
+def _failed(report) -> set[str]:
+    return {c.name for c in report.criteria if not c.passed}
 
 
-def test_burst_checker_accepts_the_reference(rt):
-    report = check_burst_qos(burst_qos())
+def _covered(table) -> set[str]:
+    return set().union(*(param.values[1] for param in table))
+
+
+BURST_WRONG = [
+    pytest.param(None, {PROFILE}, id="left-none"),  # the notebook's burst_qos = None
+    pytest.param(qos_profile_system_default, {PROFILE}, id="system-default"),  # the lab runs named policies
+    # KEEP_LAST 10, RELIABLE: the reader's queue overwrites samples that the slow callback has not
+    # taken yet. Reliability does not bring them back (the writer's resends go to a full queue).
+    pytest.param(QoSProfile(depth=10), {LOSS}, id="default-depth"),
+    pytest.param(qos_profile_sensor_data, {LOSS}, id="sensor-data"),  # best effort, depth 5: "it is a sensor"
+]
+# Criteria of a passing report that no QoS can fail, and where each one is shown instead. (RAN is
+# in a report only when it fails; no QoS makes it fail either: test_burst_checker_reports_a_busy_lab.)
+NO_WRONG_QOS = {
+    SENT: "publish() fails only when a KEEP_ALL history is full, and 60 samples never fill it: "
+          "the keep-all case of the test below",
+    LATENCY: "the last sample waits about 0.3 s whatever the queue: test_burst_checker_rejects_a_missed_"
+             "latency_target fails it with a tighter target",
+}
+KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+@pytest.mark.parametrize("qos", [burst_qos(), KEEP_ALL], ids=["reference", "keep-all"])
+def test_burst_checker_accepts_the_reference_and_every_criterion_has_a_wrong_solution(rt, qos):
+    report = check_burst_qos(qos)
     print(report)
     assert report.passed, report.summary()
     assert not rt.children()  # the publisher's process is gone
+    assert {c.name for c in report.criteria} - _covered(BURST_WRONG) == set(NO_WRONG_QOS)
 
 
-def test_burst_checker_rejects_the_default_depth_although_it_is_reliable(rt):
-    # KEEP_LAST 10, RELIABLE: the reader's queue overwrites samples that the slow callback has not
-    # taken yet. Reliability does not bring them back (the writer's resends go to a full queue).
-    report = check_burst_qos(QoSProfile(depth=10))
+@pytest.mark.parametrize("wrong, failing", BURST_WRONG)
+def test_burst_checker_fails_each_criterion_on_a_wrong_solution(rt, wrong, failing):
+    report = check_burst_qos(wrong)
     print(report)
-    assert _failed(report) == [f"loss target: at most 0 of the {BURST_SAMPLES} samples lost"]
+    assert not report.passed
+    assert failing <= _failed(report), report.summary()
+
+
+def test_burst_checker_reports_a_busy_lab(rt):
+    # No QoS stops the experiment from running (both ends have it, so they always match); a run of
+    # the lab panel in the same kernel does.
+    lab = qos_lab()
+    try:
+        lab.start([ExperimentConfig(rate_hz=10, duration_s=20.0, label="busy")])
+        assert rt.poll_until(rt.children, 30)  # its publisher runs
+        report = check_burst_qos(burst_qos())
+    finally:
+        lab.close()
+    assert _failed(report) == {RAN}
+    assert "another QoS lab experiment is running" in report.criteria[-1].detail
 
 
 def test_burst_checker_rejects_a_missed_latency_target(rt):
     # The reference's last sample waits for the ~60 before it (10 ms each): never within 50 ms.
     report = check_burst_qos(burst_qos(), max_p99_ms=50.0)
     print(report)
-    assert _failed(report) == ["latency target: p99 at most 50 ms"]
+    assert _failed(report) == {"latency target: p99 at most 50 ms"}
 
 
 @pytest.mark.parametrize("qos, words", [
@@ -49,7 +107,7 @@ def test_burst_checker_rejects_a_missed_latency_target(rt):
 ])
 def test_burst_checker_explains_a_profile_it_cannot_run(qos, words):
     report = check_burst_qos(qos)
-    assert _failed(report) == ["the QoS is a profile the lab can run"]
+    assert _failed(report) == {PROFILE}
     assert words in report.criteria[0].detail
 
 
