@@ -69,6 +69,9 @@ def show_solution(module: str, name: str, label: str = "Show the reference solut
     return box
 
 
+_passing_reports: dict = {}  # (module, name, the check's code) -> (passing report, when it was checked)
+
+
 def show_passing_report(check, module: str, name: str, recheck: bool = False):
     """Show, collapsed, what a passing checker report looks like, without showing the solution code.
 
@@ -104,18 +107,17 @@ def show_passing_report(check, module: str, name: str, recheck: bool = False):
             raise CourseError(f"the reference solution {module}.{name} did not pass its own checker:\n"
                               f"{report.summary()}")
         _passing_reports[key] = (report, time.strftime("%H:%M:%S"))
-        again = ""
+        again = None
     title = f"what passing looks like: {report.exercise}"
+    text = f"[record] {title}\n{report.summary()}"
     body = (f"<details><summary>{html.escape(title.capitalize())} (the reference solution, checked "
             f"against real nodes; its code stays hidden)</summary>{report._repr_html_()}</details>")
-    html_again = f"<p><i>({html.escape(again)})</i></p>" if again else ""
-    display({"text/plain": f"[record] {title}\n{report.summary()}" + (f"\n({again})" if again else ""),
+    if again:
+        text, body = f"{text}\n({again})", f"{body}<p><i>({html.escape(again)})</i></p>"
+    display({"text/plain": text,
              "text/html": f"<div class='course-record' data-record='{html.escape(title, quote=True)}'>"
-                          f"{body}{html_again}</div>"}, raw=True)
+                          f"{body}</div>"}, raw=True)
     return report
-
-
-_passing_reports: dict = {}  # (module, name, the check's code) -> (passing report, when it was checked)
 
 
 def _code_key(code):

@@ -192,15 +192,20 @@ def blind_spells(ticks: list[float], start: float, end: float, longest_s: float)
 
 def seen_seconds(ticks: list[float], start: float, end: float, longest_s: float) -> float:
     """Seconds of [``start``, ``end``] outside the :func:`blind_spells`."""
-    return end - start - sum(b - a for a, b in blind_spells(ticks, start, end, longest_s))
+    return _outside(blind_spells(ticks, start, end, longest_s), start, end)
 
 
 def watched_downtime(changes: list[tuple], ticks: list[float], start: float, end: float,
                      longest_s: float) -> tuple[float, float]:
     """(seconds without a live writer, seconds watched) of [``start``, ``end``], both outside the
     :func:`blind_spells` of the watcher's timer (``ticks``)."""
-    return (seconds_without_writer(changes, start, end, blind_spells(ticks, start, end, longest_s)),
-            seen_seconds(ticks, start, end, longest_s))
+    blind = blind_spells(ticks, start, end, longest_s)
+    return seconds_without_writer(changes, start, end, blind), _outside(blind, start, end)
+
+
+def _outside(spells, start: float, end: float) -> float:
+    """Seconds of [``start``, ``end``] outside ``spells`` (spans within it that do not overlap)."""
+    return end - start - sum(b - a for a, b in spells)
 
 
 def _overlap(span: tuple[float, float], spells) -> float:
