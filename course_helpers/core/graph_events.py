@@ -21,6 +21,7 @@ parts it relies on are listed in ``tests/test_rclpy_private_api.py``.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import sys
@@ -74,14 +75,16 @@ def _load_rcl():
 class GraphWatcher:
     """Counts the changes of the graph as ``node`` sees it (all nodes of a context share one view).
 
-    ``node`` must outlive the watcher: call :meth:`stop` before destroying it or shutting its
-    context down. Raises OSError if rcl cannot be loaded or the wait set cannot be made.
+    The watcher's thread holds ``node``'s handle until :meth:`stop`: destroying the node before
+    then only takes effect once the thread has ended (rclpy's ``destroy_when_not_in_use``). Raises
+    OSError if rcl cannot be loaded or the wait set cannot be made.
     """
 
     def __init__(self, node):
         from rclpy.guard_condition import GuardCondition
 
         self.version = 0
+        self._node = node
         self._rcl, rcutils = _load_rcl()
         self._graph = self._rcl.rcl_node_get_graph_guard_condition(node.handle.pointer)
         if not self._graph:
@@ -94,6 +97,13 @@ class GraphWatcher:
         if code != RCL_RET_OK:
             raise OSError(f"rcl_wait_set_init failed ({code})")
         self._stopping = False
+        # The graph guard condition is the node's (rcl frees it with the node), so the watcher holds
+        # the node's handle, and the wake condition's, from here until its thread ends: a
+        # destroy_node() from another thread meanwhile is deferred instead of freeing what rcl_wait
+        # waits on (a procedure interrupted inside rt.build destroyed the node under it: a crash).
+        self._held = contextlib.ExitStack()
+        self._held.enter_context(node.handle)
+        self._held.enter_context(self._wake.handle)
         self._thread = threading.Thread(target=self._watch, name="graph-watcher", daemon=True)
         self._thread.start()
 
@@ -112,6 +122,8 @@ class GraphWatcher:
                     self.version += 1
                     changes.notify()
         finally:
+            self._rcl.rcl_wait_set_fini(ctypes.byref(self._wait_set))  # before the handles go
+            self._held.close()  # a destroy requested meanwhile happens now
             self.version += 1  # whoever cached an answer asks again
             changes.notify()
 
@@ -127,6 +139,4 @@ class GraphWatcher:
         except Exception:  # the context is shut down already: rcl_wait has returned with an error
             pass
         self._thread.join(timeout)
-        if not self._thread.is_alive():
-            self._rcl.rcl_wait_set_fini(ctypes.byref(self._wait_set))
-        self._wake.destroy()
+        self._wake.destroy()  # deferred until the thread lets go of it

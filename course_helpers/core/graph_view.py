@@ -20,6 +20,7 @@ from rclpy.node import Node
 from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S
 from course_helpers.core.graph_events import GraphWatcher
 from course_helpers.core.names import node_full_names, split_full_name
+from course_helpers.core.node_hook import outside_builds
 from course_helpers.core.waiting import UNNOTIFIED_PERIOD_S
 
 INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's daemon nodes
@@ -37,7 +38,9 @@ class GraphView:
     def __init__(self, context, started_at: float):
         self._started_at = started_at
         self._settled = False
-        self.node = Node(INTERNAL_NODE, context=context, enable_rosout=False, start_parameter_services=False)
+        with outside_builds():  # the first query may come from inside a child's procedure
+            self.node = Node(INTERNAL_NODE, context=context, enable_rosout=False,
+                             start_parameter_services=False)
         try:
             self._watcher: GraphWatcher | None = GraphWatcher(self.node)
         except (OSError, AttributeError):

@@ -15,6 +15,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
 from course_helpers.core.executors import SpinThread
+from course_helpers.core.node_hook import outside_builds
 
 LOG_NODE = "_course_logs"  # hidden (leading underscore), like ros2cli's daemon nodes
 
@@ -25,7 +26,8 @@ class RosoutReader:
     def __init__(self, context, on_log: Callable, on_error: Callable):
         from rcl_interfaces.msg import Log
 
-        self.node = Node(LOG_NODE, context=context, enable_rosout=False, start_parameter_services=False)
+        with outside_builds():  # the runtime's own node, even when a build starts the runtime
+            self.node = Node(LOG_NODE, context=context, enable_rosout=False, start_parameter_services=False)
         qos = QoSProfile(depth=100, reliability=QoSReliabilityPolicy.RELIABLE,
                          durability=QoSDurabilityPolicy.VOLATILE)
         self.node.create_subscription(Log, "/rosout", on_log, qos)

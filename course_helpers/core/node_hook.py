@@ -8,13 +8,17 @@ first, so the runtime can free the name). The hook is:
 * restored: ``Node.__init__`` is rclpy's own again as soon as no thread is building;
 * re-entrant: a factory that builds a node inside another build gets the innermost context;
 * clean on failure: a constructor that raises after ``super().__init__`` ran leaves no
-  half-built node behind (it is destroyed before the error reaches the caller).
+  half-built node behind (it is destroyed before the error reaches the caller);
+* for the factory's nodes only: a node the runtime makes for itself while a build runs (its
+  hidden graph node, made on the first graph query) is created inside :func:`outside_builds`,
+  so a failing or interrupted factory never destroys it.
 """
 
 from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from rclpy.node import Node
@@ -86,6 +90,18 @@ def build_nodes(context, factory: Callable, *args,
         raise
     finally:
         _leave()
+
+
+@contextmanager
+def outside_builds():
+    """Nodes created in this thread during the block belong to no build: they get no context from
+    it, and a build that fails does not destroy them (the runtime's own nodes)."""
+    stack = getattr(_local, "stack", None)
+    _local.stack = []
+    try:
+        yield
+    finally:
+        _local.stack = stack
 
 
 def hook_installed() -> bool:
