@@ -43,15 +43,13 @@ import sys
 import threading
 import time
 
-from discovery_targets import PROBE_TIMEOUT_S, BeaconAnchor, probe_procedure
-
+from benchmarks.discovery_targets import PROBE_TIMEOUT_S, BeaconAnchor, probe_procedure
 from course_helpers.core import processes
 from course_helpers.core.dds_config import PROFILE_ENV, default_discovery_env
 from course_helpers.core.domains import reserve_domain
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.waiting import poll_until
 
-HERE = os.path.dirname(os.path.abspath(__file__))
 KEYS = ("anchor sees new", "new sees anchor", "sub matched")
 
 
@@ -118,8 +116,7 @@ class CourseSetup:
     """An anchor child and probe children through the course's process layer."""
 
     def __init__(self, label: str, env: dict):
-        path = os.pathsep.join(p for p in (HERE, os.environ.get("PYTHONPATH")) if p)
-        self.label, self.env = label, {**env, "PYTHONPATH": path}
+        self.label, self.env = label, env
         self.key = label.replace("-", "_")  # process labels are node-name-like
         self.anchor = get_runtime().spawn(f"{self.key}_anchor", BeaconAnchor, env=self.env)
         self.anchor.wait_for_report("ready", 30)
@@ -204,6 +201,27 @@ def summarize(rows: list[dict], key: str, timeout: float) -> tuple[float, float,
     return statistics.median(values), percentile(values, 0.9), misses
 
 
+def measure(start_setup, runs: int) -> tuple[str, list[dict]]:
+    """Start a set-up (``start_setup()`` returns it), time ``runs`` fresh probe processes against its
+    anchor, stop it; (its label, each probe's :func:`latencies`)."""
+    setup = start_setup()
+    rows = []
+    time.sleep(1.0)  # the anchor is up and announced
+    try:
+        for index in range(runs):
+            rows.append(latencies(setup.probe(index)))
+    finally:
+        setup.stop()
+    return setup.label, rows
+
+
+def course_p90(runs: int) -> float:
+    """The headline figure: the course set-up's worst p90 of the three, over ``runs`` fresh processes
+    (a probe that missed counts as ``PROBE_TIMEOUT_S``)."""
+    _label, rows = measure(lambda: CourseSetup("course", {"ROS_DOMAIN_ID": reserve_domain()}), runs)
+    return max(summarize(rows, key, PROBE_TIMEOUT_S)[1] for key in KEYS)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=20, help="fresh processes per set-up (default 20)")
@@ -220,15 +238,8 @@ def main(argv=None) -> int:
     ]
     rows: dict[str, list[dict]] = {}
     for start in phases:
-        setup = start()
-        rows[setup.label] = []
-        time.sleep(1.0)  # the anchor is up and announced
-        try:
-            for index in range(args.runs):
-                rows[setup.label].append(latencies(setup.probe(index)))
-            print(f"  {setup.label}: {args.runs} fresh processes done", flush=True)
-        finally:
-            setup.stop()
+        label, rows[label] = measure(start, args.runs)
+        print(f"  {label}: {args.runs} fresh processes done", flush=True)
     print(f"\nDiscovery of a node in a new process, {args.runs} fresh processes per set-up "
           "(seconds from the node's creation; p50 / p90):")
     print(f"{'set-up':<17}{'create node':>16}" + "".join(f"  {k:>24}" for k in KEYS))

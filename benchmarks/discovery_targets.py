@@ -1,7 +1,5 @@
-"""Child-process targets of ``discovery_latency.py`` (a child imports its target from a module).
-
-The benchmark puts this folder on the children's ``PYTHONPATH``.
-"""
+"""Child-process targets of ``discovery_latency.py`` (a child imports its target from a module:
+``benchmarks.discovery_targets``, on the venv's path like the rest of the repository)."""
 
 from __future__ import annotations
 

@@ -270,28 +270,3 @@ def test_a_run_that_ends_with_samples_in_flight_says_so_first(rt, monkeypatch):
         assert f"NOT FINISHED: {result.in_flight} in flight, not lost" in texts
     finally:
         lab.close()
-
-
-def test_machine_load_counts_other_processes_cpu_and_says_when_it_was_busy():
-    import subprocess
-    import sys
-
-    from course_helpers.chapters.ch08b_lab.machine_load import LoadMeter, MachineLoad
-
-    quiet = MachineLoad(cores=4, seconds=2.0, others_cores=0.1, load_per_core=0.2)
-    assert not quiet.busy and quiet.describe().startswith("The machine was quiet")
-    shared = MachineLoad(cores=4, seconds=2.0, others_cores=0.2, load_per_core=0.3, kernels=(11, 12),
-                         children=(13,))
-    assert not shared.busy and "2 other course kernels" in shared.describe()
-    assert MachineLoad(cores=2, seconds=2.0, others_cores=0.1, load_per_core=1.5).busy  # long run queue
-    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
-    try:
-        meter = LoadMeter()
-        time.sleep(1.5)
-        load = meter.finish()
-    finally:
-        hog.kill()
-        hog.wait()
-    print(load.describe())
-    assert load.others_cores >= 0.5 and load.busy  # the hog alone keeps a core busy when it gets one
-    assert "busy" in load.describe() and "Running panel" in load.describe()

@@ -37,10 +37,10 @@ CORE_EXTRAS = {
     "numpy": ({"course_helpers.core.build_interfaces"}, "the rosidl build needs NumPy's C headers"),
     "psutil": ({"course_helpers.core.domains", "course_helpers.core.supervisor",
                 "course_helpers.core.udp_sockets", "course_helpers.core.processes",
-                "course_helpers.core.other_kernels"},
+                "course_helpers.core.other_kernels", "course_helpers.core.machine_load"},
                "who holds a domain; the descendants a child ends when it exits; a process's UDP "
                "sockets; the program under a child's supervisor; the other kernels of the same "
-               "Jupyter server"),
+               "Jupyter server; the machine's CPU time and this process tree's during a measurement"),
     "IPython": ({"course_helpers.core.console"}, "a node's console under its notebook cell"),
 }
 

@@ -7,7 +7,6 @@
 * ``link``: the lossy link (both ends in a private network namespace that drops a share of UDP),
   :func:`link_unavailable_reason` where it cannot be made;
 * ``results``: :class:`Snapshot` and :class:`ExperimentResult`;
-* ``machine_load``: how busy the machine was during a run, and which other course kernels ran;
 * ``plots``: :func:`draw_results` and the live :class:`ResultsFigure`;
 * ``panel``: :func:`qos_lab`, the widget panel; ``table``: its results table.
 """

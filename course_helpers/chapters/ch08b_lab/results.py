@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
-from course_helpers.chapters.ch08b_lab.machine_load import MachineLoad
+from course_helpers.core.machine_load import MachineLoad
 from course_helpers.core.units import format_bytes
 
 

@@ -23,7 +23,6 @@ from dataclasses import dataclass, field
 
 from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
 from course_helpers.chapters.ch08b_lab.link import SUBSCRIBER_LABEL, RemoteSubscriber, link_env, lossy_link
-from course_helpers.chapters.ch08b_lab.machine_load import LoadMeter
 from course_helpers.chapters.ch08b_lab.publisher import CHILD_LABEL, LabPublisher
 from course_helpers.chapters.ch08b_lab.results import (
     ExperimentResult,
@@ -35,6 +34,7 @@ from course_helpers.chapters.ch08b_lab.subscriber import LabSubscriber, Reportin
 from course_helpers.core import processes
 from course_helpers.core.dds_config import udp_loopback_env
 from course_helpers.core.errors import CourseError
+from course_helpers.core.machine_load import LoadMeter
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.waiting import poll_until
 
