@@ -105,3 +105,42 @@ def test_callbacks_that_never_go_quiet_are_an_error_not_a_hang(rt, clock):
     node.out.publish(String(data="again"))
     with pytest.raises(CourseError, match="did not go quiet"):
         clock.settle()
+
+
+class Sleeper(Node):
+    """An async callback that awaits a one-shot timer's future across clock steps. The callback is in a
+    group of its own: while it waits, it holds its group, and the timer must run in another."""
+
+    def __init__(self):
+        from rclpy.callback_groups import ReentrantCallbackGroup
+
+        super().__init__("sim_sleeper")
+        self.woke: list[float] = []
+        self.create_subscription(String, "nap", self.nap, 10, callback_group=ReentrantCallbackGroup())
+
+    async def nap(self, _msg) -> None:
+        from rclpy.task import Future
+
+        done = Future()
+
+        def wake():
+            self.destroy_timer(timer)
+            done.set_result(None)
+
+        timer = self.create_timer(0.5, wake)
+        await done
+        self.woke.append(self.get_clock().now().nanoseconds / 1e9)
+
+
+def test_a_coroutine_waiting_for_time_is_quiet_until_time_moves(rt, clock):
+    node = clock.drive(rt.build(Sleeper))
+    sender = clock.drive(rt.build(Node, "sim_nap_sender"))
+    nap = sender.create_publisher(String, "nap", 10)
+    clock.wait_matched()
+    nap.publish(String(data="now"))
+    clock.settle()  # the coroutine waits: a settle ends instead of spinning on it
+    assert node.woke == []
+    clock.advance(0.49)
+    assert node.woke == []
+    clock.advance(0.02)
+    assert len(node.woke) == 1 and node.woke[0] == pytest.approx(START_S + 0.5, abs=0.011)

@@ -95,30 +95,33 @@ class SimClock:
         """Run every ready callback of the driven nodes until none is ready; how many ran.
 
         rclpy's executor hands out the callbacks one wait's worth at a time, and with a zero timeout
-        it ends each batch with TimeoutException, even when it handed some out: only a wait that
-        finds nothing ready means quiet. Raises CourseError if they never go quiet (more than
-        :data:`MAX_CALLBACKS_PER_SETTLE`).
+        it ends each batch with TimeoutException, even when it handed some out; so batches follow
+        each other until one makes no progress. A batch that only resumed coroutines still waiting
+        (an ``async`` callback awaiting a future that a later step completes: rclpy hands those out
+        before every wait) made none: only another callback, or time, can complete what they await.
+        Raises CourseError if the callbacks never go quiet (more than :data:`MAX_CALLBACKS_PER_SETTLE`).
         """
         count = 0
         while True:
-            batch = 0
+            progress = False
             while True:
                 try:
                     handler, _entity, _node = self._executor.wait_for_ready_callbacks(timeout_sec=0)
                 except TimeoutException:
                     break
                 handler()
-                if handler.exception() is not None:
-                    self.errors.append(handler.exception())
-                batch += 1
-            count += batch
-            if batch == 0:
+                count += 1
+                if handler.done():
+                    progress = True
+                    if handler.exception() is not None:
+                        self.errors.append(handler.exception())
+                if count > MAX_CALLBACKS_PER_SETTLE:
+                    raise CourseError(
+                        f"the nodes' callbacks did not go quiet: more than {MAX_CALLBACKS_PER_SETTLE} ran "
+                        "after one step of the clock (a callback that triggers itself, such as a "
+                        "subscription that publishes to its own topic?)")
+            if not progress:
                 return count
-            if count > MAX_CALLBACKS_PER_SETTLE:
-                raise CourseError(f"the nodes' callbacks did not go quiet: more than "
-                                  f"{MAX_CALLBACKS_PER_SETTLE} ran after one step of the clock (a callback "
-                                  f"that triggers itself, such as a subscription that publishes to its own "
-                                  f"topic?)")
 
     def step(self, seconds: float) -> None:
         """Move time forward by ``seconds`` in one jump, then settle."""
