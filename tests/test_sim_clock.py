@@ -144,3 +144,11 @@ def test_a_coroutine_waiting_for_time_is_quiet_until_time_moves(rt, clock):
     assert node.woke == []
     clock.advance(0.02)
     assert len(node.woke) == 1 and node.woke[0] == pytest.approx(START_S + 0.5, abs=0.011)
+
+
+def test_advance_until_stops_at_the_first_step_that_makes_it_true(rt, clock):
+    node = clock.drive(rt.build(Ticker))
+    assert clock.advance_until(lambda: len(node.ticks) >= 3, 1.0, step_s=0.01)
+    assert len(node.ticks) == 3 and clock.now_s == pytest.approx(node.ticks[-1])
+    assert not clock.advance_until(lambda: len(node.ticks) >= 100, 0.5)
+    assert clock.now_s == pytest.approx(node.ticks[2] + 0.5)

@@ -18,6 +18,9 @@ from dataclasses import dataclass, field
 
 from rclpy.node import Node
 
+from course_helpers.core.node_hook import destroy_fully
+from course_helpers.core.sim_clock import SimClock
+
 
 @dataclass
 class Criterion:
@@ -111,3 +114,39 @@ def student_node(report: CheckReport, rt, node_class, probe_name: str):
     finally:
         rt.remove(probe)  # the runtime also destroys the action servers and clients a node leaves behind
         rt.remove(node)
+
+
+@contextlib.contextmanager
+def student_on_clock(report: CheckReport, rt, node_class, probe_name: str):
+    """Run the student's node on a clock the checker owns, with a probe node beside it.
+
+    Both are built in ``rt``'s context but spun only by a :class:`~course_helpers.core.sim_clock.SimClock`
+    (``use_sim_time`` on): time moves when the checker says, and after each step every message has
+    arrived and every callback has run. The verdict is the same on any machine, however busy, and a
+    scenario of many seconds takes a fraction of one. Yields ``(node, probe, clock)``, or
+    ``(None, None, None)`` when the student's class could not be built (the report holds that
+    failure). The student's callback errors are in ``clock.errors``.
+    """
+    clock = SimClock(rt)
+    node = report.run("the node can be created", lambda: rt.build(node_class),
+                      hint="Run the class cell first; the constructor must take no arguments.")
+    try:
+        if node is None:
+            yield None, None, None
+            return
+        clock.drive(node)
+        probe = clock.drive(rt.build(Node, probe_name, enable_rosout=False, start_parameter_services=False))
+        yield node, probe, clock
+    finally:
+        driven = list(clock.driven)
+        clock.close()
+        for built in driven:
+            with contextlib.suppress(Exception):  # the student's destroy_node may have run already
+                destroy_fully(built)
+
+
+def callback_errors_criterion(report: CheckReport, errors: list[BaseException]) -> bool:
+    """The criterion "callbacks raised no errors", from the errors a SimClock kept."""
+    first = f"{type(errors[0]).__name__}: {errors[0]}" if errors else ""
+    return report.add("callbacks raised no errors", not errors, first.splitlines()[0] if first else "",
+                      hint="Run your node in a cell of its own and read the traceback in its console.")

@@ -2,47 +2,44 @@
 
 The student's node, ``silence_watchdog``, subscribes to ``chatter`` (std_msgs/String,
 '<sender>: <count>') and publishes the name of every sender that went quiet on ``silent_talkers``.
-The checker starts two talker processes, kills one with SIGKILL, and checks that the watchdog
-reports it, once, long before the ROS graph forgets the dead node (the talkers announce a 5 s
-lease, so a crashed one stays listed that long, and leaves before a second run of the notebook
-could list it twice). Then it talks in the dead talker's name for a moment, as a restarted talker
-would, and falls silent again: the watchdog must report that new silence too.
+
+The checker runs it on a clock of its own (:func:`~course_helpers.checks.student_on_clock`): two talker
+nodes, ``wd_talker_1`` and ``wd_talker_2``, talk 19 times a second of that clock; then the first stops
+talking while its node stays in the graph, as a crashed process's node stays until its lease runs out.
+The watchdog must report it, once, and never the one that keeps talking. Then the checker talks in the
+first one's name again, as a restarted talker would, and stops: the watchdog must report that new
+silence too. Every time below is ROS time the checker owns, so the verdict is the same on any machine.
 """
 
 from __future__ import annotations
 
-import time
-
+from rclpy.node import Node
 from std_msgs.msg import String
 
-from course_helpers.chapters.ch01_architecture import NamedTalker, short_lease_env
-from course_helpers.checks import CheckReport, student_node
-from course_helpers.core.waiting import poll_until, sleep_unless
+from course_helpers.checks import CheckReport, callback_errors_criterion, student_on_clock
+from course_helpers.core.runtime import get_runtime
 
-TALKERS = ("wd_talker_1", "wd_talker_2")  # the first one is killed
-TALKER_RATE_HZ = 19.0  # not a multiple of a 10 Hz timer: its ticks do not stay in step with the talk
-TALKER_LEASE_S = 5.0  # peers keep a crashed talker this long in their graph
-QUIET_WINDOW_S = 1.0  # both talkers talk: no alarm may come
-QUIET_TENTHS = 8  # ... and the checker must hear both in this many tenths of a second of the window
-REPORT_WITHIN_S = 3.0  # the watchdog must report the killed talker this soon (its silence: 0.5 s),
-# well before its lease runs out
-REPEAT_WINDOW_S = 1.0  # after the report: no second alarm about the same silence
+TALKERS = ("wd_talker_1", "wd_talker_2")  # the first one falls silent
+TALKER_PERIOD_S = 1 / 19  # 19 messages a second: not in step with a 10 Hz timer
 NODE_NAME = "silence_watchdog"
 SILENCE_S = 0.5  # the exercise's threshold: a sender quiet for longer is reported [s]
-RETURN_MESSAGES = 10  # the checker talks again in the dead talker's name: this many messages...
-RETURN_PERIOD_S = 0.05  # ...this far apart (as fast as the talkers)
+QUIET_WINDOW_S = 2.0  # both talkers talk this long: no alarm may come
+REPORT_WITHIN_S = 1.0  # after the last message: the silence (0.5 s), a timer period (0.1 s) and room
+REPEAT_WINDOW_S = 2.0  # after the report: no second alarm about the same silence
+RETURN_MESSAGES = 10  # the checker talks again in the first talker's name: this many messages...
+RETURN_PERIOD_S = 0.05  # ...this far apart
+STEP_S = 0.01  # the checker's clock moves in steps this long
 
 
-def _endpoint_types(rt, topic: str, node, publishers: bool) -> list[str]:
-    infos = (rt.graph.get_publishers_info_by_topic(topic) if publishers
-             else rt.graph.get_subscriptions_info_by_topic(topic))
+def _endpoint_types(probe, topic: str, node, publishers: bool) -> list[str]:
+    infos = (probe.get_publishers_info_by_topic(topic) if publishers
+             else probe.get_subscriptions_info_by_topic(topic))
     return sorted({i.topic_type for i in infos
                    if i.node_name == node.get_name() and i.node_namespace == node.get_namespace()})
 
 
-def _has_endpoint(report: CheckReport, rt, node, topic: str, publishers: bool, hint: str) -> bool:
-    poll_until(lambda: _endpoint_types(rt, topic, node, publishers), 2.0)
-    types = _endpoint_types(rt, topic, node, publishers)
+def _has_endpoint(report: CheckReport, probe, node, topic: str, publishers: bool, hint: str) -> bool:
+    types = _endpoint_types(probe, topic, node, publishers)  # this process's own endpoints: listed at once
     verb = "publishes on" if publishers else "subscribes to"
     detail = "" if types == ["std_msgs/msg/String"] else (
         f"with type {', '.join(types)}" if types else "none found in the graph")
@@ -50,8 +47,46 @@ def _has_endpoint(report: CheckReport, rt, node, topic: str, publishers: bool, h
                       detail, hint)
 
 
+class _Talk:
+    """The checker's side: talkers that talk on the clock, and the alarms heard, with their ROS times."""
+
+    def __init__(self, rt, clock, probe):
+        self.clock = clock
+        self.alarms: list[tuple[float, str]] = []  # (ROS time [s], text)
+        self.talking = set(TALKERS)
+        self.next_at = {name: clock.now_s for name in TALKERS}
+        self.counts = dict.fromkeys(TALKERS, 0)
+        self.last_said = dict.fromkeys(TALKERS, clock.now_s)
+        self.chatter = {}
+        for name in TALKERS:  # one node per talker: the graph lists each, as it lists a process's node
+            talker = clock.drive(rt.build(Node, name, enable_rosout=False, start_parameter_services=False))
+            self.chatter[name] = talker.create_publisher(String, "chatter", 10)
+        probe.create_subscription(String, "silent_talkers",
+                                  lambda msg: self.alarms.append((clock.now_s, msg.data)), 10)
+        clock.wait_matched()
+
+    def say(self, name: str) -> None:
+        self.chatter[name].publish(String(data=f"{name}: {self.counts[name]}"))
+        self.counts[name] += 1
+        self.last_said[name] = self.clock.now_s
+
+    def between_steps(self) -> None:
+        """Called after every step of the clock: each talking talker talks when its period is up."""
+        for name in sorted(self.talking):
+            if self.clock.now_s + 1e-9 >= self.next_at[name]:
+                self.say(name)
+                self.next_at[name] += TALKER_PERIOD_S
+
+    def run(self, seconds: float) -> None:
+        self.clock.advance(seconds, STEP_S, self.between_steps)
+
+    def naming(self, sender: str, since: float = float("-inf")) -> list[float]:
+        """When (ROS time) each alarm naming ``sender`` came, from ``since`` on."""
+        return [at for at, text in self.alarms if sender in text and at >= since]
+
+
 def check_silence_watchdog(node_class, rt=None) -> CheckReport:
-    """Check a silence watchdog: it reports a killed talker on ``silent_talkers``, once, and no other.
+    """Check a silence watchdog: it reports a silent talker on ``silent_talkers``, once, and no other.
 
     Args:
         node_class: the student's Node subclass, built without arguments.
@@ -59,134 +94,69 @@ def check_silence_watchdog(node_class, rt=None) -> CheckReport:
 
     Returns:
         A :class:`CheckReport`. The node must subscribe to ``/chatter`` and publish on
-        ``/silent_talkers`` (both std_msgs/String); with two talker processes running, stay quiet;
-        after one is killed, publish that sender's name within 3 s, once; never name the survivor.
+        ``/silent_talkers`` (both std_msgs/String); while two talkers talk, stay quiet; after one stops,
+        publish that sender's name within 1 s of its last message, once; never name the other.
     """
-    from course_helpers.core.runtime import get_runtime
-
     rt = rt or get_runtime()
     report = CheckReport("Exercise: a watchdog for silent talkers")
-    errors_before = len(rt.errors)
-    with student_node(report, rt, node_class, "watchdog_checker") as (node, probe):
+    with student_on_clock(report, rt, node_class, "watchdog_checker") as (node, probe, clock):
         if node is None:
             return report
         name = node.get_name()
         named = name == NODE_NAME
         report.add(f"the node is named {NODE_NAME}", named, "" if named else f"its name is {name!r}",
                    hint="The name is the first argument of super().__init__ in your constructor.")
-        subscribes = _has_endpoint(report, rt, node, "/chatter", False,
+        subscribes = _has_endpoint(report, probe, node, "/chatter", False,
                                    "TODO 1: chapter 00's Listener shows how a node subscribes; the topic "
                                    "and the type are in the task.")
-        publishes = _has_endpoint(report, rt, node, "/silent_talkers", True,
+        publishes = _has_endpoint(report, probe, node, "/silent_talkers", True,
                                   "Compare your publisher's topic and message type with the task.")
         if not (subscribes and publishes):
-            report.add("two talkers, one killed", False, "not run: the node must subscribe and publish first",
+            report.add("two talkers, one falls silent", False,
+                       "not run: the node must subscribe and publish first",
                        hint="Fix the criteria above, then check again.")
             return report
-        alarms: list[tuple[float, str]] = []  # (when the checker got it, monotonic s; its text)
-        heard: dict[str, list[float]] = {}  # sender -> when the checker heard it (monotonic s)
-
-        def on_alarm(msg) -> None:
-            alarms.append((time.monotonic(), msg.data))
-
-        def on_chatter(msg) -> None:
-            heard.setdefault(msg.data.split(":", 1)[0], []).append(time.monotonic())
-
-        probe.create_subscription(String, "silent_talkers", on_alarm, 10)
-        probe.create_subscription(String, "chatter", on_chatter, 10)
-        impostor = probe.create_publisher(String, "chatter", 10)
-        try:
-            _run_scenario(report, rt, alarms, heard, impostor)
-        finally:
-            for label in TALKERS:
-                if label in rt.children():
-                    rt.stop_child(label)
-        errors = rt.errors[errors_before:]
-        report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
-                   hint="Read the traceback in the node's console under the checker's cell.")
+        _run_scenario(report, _Talk(rt, clock, probe))
+        callback_errors_criterion(report, clock.errors)
     return report
 
 
-def _run_scenario(report: CheckReport, rt, alarms: list[tuple[float, str]], heard: dict[str, list[float]],
-                  impostor) -> None:
-    dead, alive = TALKERS
-    # A talker killed by an earlier check stays in the graph for its lease; a namesake of it would
-    # make a watchdog that waits for the graph look right, so start once it is gone.
-    poll_until(lambda: not {f"/{name}" for name in TALKERS} & set(rt.graph_nodes()), TALKER_LEASE_S + 2)
-    lease = short_lease_env(TALKER_LEASE_S)
-    children = {name: rt.spawn(name, NamedTalker, {"name": name, "rate_hz": TALKER_RATE_HZ},
-                               wait_for=f"/{name}", env=lease) for name in TALKERS}
-    if not poll_until(lambda: set(TALKERS) <= heard.keys(), 10):  # the checker's own set-up, not a criterion
-        report.add("the checker could hear its two talkers", False, "no message from one of them within 10 s",
-                   hint="The machine may be very busy; run the check again.")
-        return
-    time.sleep(0.3)  # the watchdog hears them too
-    started = time.monotonic()
-    sleep_unless(lambda: alarms, QUIET_WINDOW_S)
-    # the watchdog's timer runs in the executor that delivers the talk to the checker: the window
-    # lasts until the checker heard both talkers in most of its tenths of a second (not in one burst
-    # after a stall, when the watchdog's timer may not have run at all)
-    poll_until(lambda: alarms or min(_tenths_heard(heard[name], started) for name in TALKERS) >= QUIET_TENTHS,
-               10.0)
-    report.add("no alarm while both talkers talk", not alarms, f"got {alarms[0][1]!r}" if alarms else "",
+def _run_scenario(report: CheckReport, talk: _Talk) -> None:
+    silent, alive = TALKERS
+    started = talk.clock.now_s
+    talk.run(QUIET_WINDOW_S)
+    report.add(f"no alarm while both talkers talk ({QUIET_WINDOW_S:g} s)", not talk.alarms,
+               f"got {talk.alarms[0][1]!r} after {talk.alarms[0][0] - started:.2f} s" if talk.alarms else "",
                hint="Report a sender only when it has been silent for more than SILENCE_S.")
-    alarms.clear()
-    children[dead].kill()  # SIGKILL: a crash, no goodbye
-    killed = time.monotonic()
-    reported = poll_until(lambda: _naming(alarms, dead), REPORT_WITHIN_S)
-    after_s = time.monotonic() - killed
-    still_listed = f"/{dead}" in rt.graph_nodes()
-    report.add(f"reports {dead} within {REPORT_WITHIN_S:g} s of its crash", reported,
-               (f"after {after_s:.1f} s, while the ROS graph still listed /{dead}" if still_listed
-                else f"after {after_s:.1f} s") if reported else "no alarm naming it",
-               hint="Listen to the data, not to the graph (it keeps a killed node for its whole lease): "
-                    "what does your timer compare, ten times a second?")
-    if not reported:
+    talk.alarms.clear()
+    talk.talking.discard(silent)  # it stops; its node stays in the graph, as a crashed one would
+    talk.run(REPORT_WITHIN_S)
+    heard = talk.naming(silent)
+    after = heard[0] - talk.last_said[silent] if heard else None
+    report.add(f"reports {silent} within {REPORT_WITHIN_S:g} s of its last message, while its node is "
+               "still in the graph", bool(heard),
+               f"after {after:.2f} s" if heard else f"no alarm naming it in {REPORT_WITHIN_S:g} s",
+               hint="Listen to the data, not to the graph (it keeps a crashed node for its whole lease). "
+                    "And keep time with your node's own clock, self.get_clock().now(): this checker "
+                    "runs your node on a clock it owns, as a bag replay or a simulator would.")
+    if not heard:
         return
-    sleep_unless(lambda: len(_naming(alarms, dead)) > 1, REPEAT_WINDOW_S)
-    repeats = len(_naming(alarms, dead))
+    talk.run(REPEAT_WINDOW_S)
+    repeats = len(talk.naming(silent))
     report.add("reports that silence once", repeats == 1,
-               "" if repeats == 1 else f"{repeats} alarms naming {dead}",
+               "" if repeats == 1 else f"{repeats} alarms naming {silent}",
                hint="Keep track of the senders you have already reported (the skeleton's self.reported).")
-    silences = _silences_before_alarms(heard, alive, alarms)
-    wrong = [gap for gap in silences if gap <= SILENCE_S * 0.8]
+    wrong = talk.naming(alive)
     report.add(f"never reports {alive}, which keeps talking", not wrong,
-               f"the checker heard it every {max(wrong):.2f} s or sooner before the alarm" if wrong else
-               (f"it named {alive} after this busy machine had delivered nothing from it for "
-                f"{min(silences):.1f} s, a real silence" if silences else ""),
-               hint="Compare each sender's own last-heard time.")
-    # The dead talker comes back (the checker talks in its name) and falls silent again.
-    before = len(alarms)
-    for count in range(RETURN_MESSAGES):
-        impostor.publish(String(data=f"{dead}: {count}"))
-        time.sleep(RETURN_PERIOD_S)
-    returned = time.monotonic()
-    again = poll_until(lambda: _naming(alarms[before:], dead), REPORT_WITHIN_S)
-    report.add(f"reports {dead} again after it talked again and fell silent", again,
-               f"after {time.monotonic() - returned:.1f} s" if again else
+               f"named it at {len(wrong)} moment(s), though it talked every {TALKER_PERIOD_S:.3f} s"
+               if wrong else "", hint="Compare each sender's own last-heard time.")
+    before = talk.clock.now_s
+    for _ in range(RETURN_MESSAGES):  # it comes back for a moment, and falls silent again
+        talk.say(silent)
+        talk.run(RETURN_PERIOD_S)
+    talk.run(REPORT_WITHIN_S)
+    again = talk.naming(silent, since=before)
+    report.add(f"reports {silent} again after it talked again and fell silent", bool(again),
+               f"after {again[0] - talk.last_said[silent]:.2f} s" if again else
                f"no new alarm within {REPORT_WITHIN_S:g} s of its last message",
                hint="A sender you reported is heard again: what must your watchdog forget then?")
-
-
-def _naming(alarms: list[tuple[float, str]], sender: str) -> list[float]:
-    """When the checker got each alarm that names ``sender`` (monotonic s)."""
-    return [arrived for arrived, text in list(alarms) if sender in text]
-
-
-def _silences_before_alarms(heard: dict[str, list[float]], sender: str,
-                            alarms: list[tuple[float, str]]) -> list[float]:
-    """For each alarm naming ``sender``: the longest the checker went without a message from it in the
-    ``SILENCE_S`` + 1 s before the alarm arrived [s]. A machine too busy to deliver the sender's
-    messages in time (to the checker and the watchdog alike) makes such a silence real."""
-    times = list(heard.get(sender, []))
-    silences = []
-    for arrived in _naming(alarms, sender):
-        start = arrived - SILENCE_S - 1.0
-        points = [start, *(t for t in times if start < t < arrived), arrived]
-        silences.append(max(later - earlier for earlier, later in zip(points, points[1:], strict=False)))
-    return silences
-
-
-def _tenths_heard(times: list[float], start: float) -> int:
-    """In how many tenths of a second since ``start`` a message arrived (``times``: monotonic s)."""
-    return len({int((t - start) * 10) for t in list(times) if t >= start})

@@ -143,6 +143,19 @@ class SimClock:
                 between()
                 self.settle()
 
+    def advance_until(self, predicate, seconds: float, step_s: float = DEFAULT_STEP_S) -> bool:
+        """Move time forward in steps of ``step_s`` until ``predicate()`` is true (checked once before
+        moving, then after every step) or ``seconds`` have passed; True if it came true."""
+        if not step_s > 0:
+            raise CourseError(f"step_s must be > 0, got {step_s!r}")
+        self.settle()
+        end = self._ns + round(seconds * 1e9)
+        while not predicate():
+            if self._ns >= end:
+                return False
+            self.step(min(step_s, (end - self._ns) / 1e9))
+        return True
+
     def _publish(self) -> None:
         message = self._clock_type()
         message.clock.sec, message.clock.nanosec = divmod(self._ns, 1_000_000_000)
