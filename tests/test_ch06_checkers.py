@@ -201,8 +201,24 @@ class MonitorWithAFixedPeriod(Monitor):
         pass
 
 
+class MonitorWithoutParameterServices(Monitor):
+    """Wrong: turns the parameter services off, so nobody can retune it from outside (ros2 param set)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(start_parameter_services=False, **kwargs)
+
+
+class MonitorReadingTheWholeMessage(Monitor):
+    """Wrong: stores float(msg) instead of msg.data (a TypeError in the subscription's callback)."""
+
+    def on_temperature(self, msg):
+        self.temperature = float(msg)
+
+
 STATUS = "(warning_c 50, critical_c 80) it reports"
 OVERHEAT_WRONG = [
+    pytest.param(MonitorWithoutParameterServices, {"its parameter services answer"}, id="no-services"),
+    pytest.param(MonitorReadingTheWholeMessage, {"callbacks raised no errors"}, id="error-in-a-callback"),
     pytest.param(MonitorWithoutKwargs, {"the node can be created with parameter overrides"}, id="no-kwargs"),
     pytest.param(MonitorCalledOverheat, {"the node is called overheat_monitor"}, id="name"),
     pytest.param(MonitorWithAnIntegerRate,
@@ -232,8 +248,8 @@ OVERHEAT_WRONG = [
                  id="swapped-labels"),
     pytest.param(MonitorWithStartupThresholds, {"after critical_c is set to 90, 85 °C becomes 'warning'"},
                  id="startup-thresholds"),
-    pytest.param(MonitorWithAFixedPeriod, {"it publishes at about 5 Hz by default",
-                                           "after rate_hz is set to 20, it publishes at about 20 Hz"},
+    pytest.param(MonitorWithAFixedPeriod, {"it publishes at 5 Hz by default",
+                                           "after rate_hz is set to 20, it publishes at 20 Hz"},
                  id="fixed-period"),
 ]
 

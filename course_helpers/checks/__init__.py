@@ -117,19 +117,22 @@ def student_node(report: CheckReport, rt, node_class, probe_name: str):
 
 
 @contextlib.contextmanager
-def student_on_clock(report: CheckReport, rt, node_class, probe_name: str):
+def student_on_clock(report: CheckReport, rt, node_class, probe_name: str, *,
+                     created: str = "the node can be created",
+                     hint: str = "Run the class cell first; the constructor must take no arguments.",
+                     **build_kwargs):
     """Run the student's node on a clock the checker owns, with a probe node beside it.
 
     Both are built in ``rt``'s context but spun only by a :class:`~course_helpers.core.sim_clock.SimClock`
     (``use_sim_time`` on): time moves when the checker says, and after each step every message has
     arrived and every callback has run. The verdict is the same on any machine, however busy, and a
-    scenario of many seconds takes a fraction of one. Yields ``(node, probe, clock)``, or
+    scenario of many seconds takes a fraction of one. The class is built with ``build_kwargs``; if
+    that fails, the criterion ``created`` fails with ``hint``. Yields ``(node, probe, clock)``, or
     ``(None, None, None)`` when the student's class could not be built (the report holds that
     failure). The student's callback errors are in ``clock.errors``.
     """
     clock = SimClock(rt)
-    node = report.run("the node can be created", lambda: rt.build(node_class),
-                      hint="Run the class cell first; the constructor must take no arguments.")
+    node = report.run(created, lambda: rt.build(node_class, **build_kwargs), hint=hint)
     try:
         if node is None:
             yield None, None, None

@@ -10,113 +10,100 @@ nodes (it must say yes) and on a pair the checker miswires (it must say no).
 
 from __future__ import annotations
 
-import threading
-import time
-
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Float64, String
 
 from course_helpers.chapters.ch06_parameters import NodeLaunch, launch
-from course_helpers.checks import CheckReport
+from course_helpers.checks import CheckReport, callback_errors_criterion, student_on_clock
 from course_helpers.core.runtime import get_runtime
+from course_helpers.core.sim_clock import MATCH_TIMEOUT_S
 from course_helpers.core.waiting import poll_until
 
 STATUS_TOPIC = "/overheat_check/status"  # the checker's override of status_topic
 DEFAULTS = {"rate_hz": 5.0, "warning_c": 60.0, "critical_c": 80.0}
-SETTLE_S = 0.25  # a retuned timer's first period may still be the old one [s]
-RATE_RATIO = (0.5, 2.0)  # statuses over the ticks of a reference timer at the expected rate
+CLOCK_STEP_S = 0.01  # the checker's clock moves in steps this long
+STATUS_WITHIN_S = 1.0  # [s of the checker's clock] a status must come this soon (at 1 Hz, the slowest)
+RATE_WINDOW_S = 2.0  # [s] the rate is counted over this much of the checker's clock
 
 
 class OverheatProbe(Node):
-    """The checker's side: publishes temperatures, records statuses, sets the monitor's parameters."""
+    """The checker's side, on the checker's clock: publishes temperatures, records statuses (with the
+    clock's time), sets the monitor's parameters through its parameter services."""
 
-    def __init__(self, rt, name: str = "overheat_checker"):
+    def __init__(self, clock, name: str = "overheat_checker"):
         super().__init__(name)
-        self.rt = rt
-        self.lock = threading.Lock()
-        self.statuses: list[tuple[float, str]] = []  # (monotonic arrival time [s], status)
-        self.status_subscription = self.create_subscription(String, STATUS_TOPIC, self.on_status, 50)
+        self.clock = clock
+        self.statuses: list[tuple[float, str]] = []  # (the checker's time [s], status)
+        self.status_subscription = self.create_subscription(
+            String, STATUS_TOPIC, lambda msg: self.statuses.append((clock.now_s, msg.data)), 50)
         self.temperature = self.create_publisher(Float64, "/temperature", 10)
         self.monitor_parameters = AsyncParameterClient(self, "/overheat_monitor")
 
-    def on_status(self, msg: String) -> None:
-        with self.lock:
-            self.statuses.append((time.monotonic(), msg.data))
-
     def latest(self) -> str | None:
         """The newest status received, or None."""
-        with self.lock:
-            return self.statuses[-1][1] if self.statuses else None
+        return self.statuses[-1][1] if self.statuses else None
 
     def set_remote(self, name: str, value):
-        """Set one parameter through the monitor's set_parameters service; returns its SetParametersResult."""
+        """Set one parameter through the monitor's set_parameters service; its SetParametersResult."""
         future = self.monitor_parameters.set_parameters([Parameter(name, value=value)])
-        return self.rt.wait_for_future(future, 3.0, f"setting {name}").results[0]
+        self.clock.settle()  # the request and the answer: both delivered, the callbacks run
+        return future.result().results[0]
 
-    def status_after(self, celsius: float | None, expected: str, timeout_s: float = 4.0) -> str | None:
-        """Publish a temperature (unless None), wait up to ``timeout_s`` for status ``expected``.
-
-        Only a status from the second one on after the change counts: the first may come from a
-        timer tick that ran before the monitor took the new temperature. Returns the newest status
-        then (``expected`` if it came), or None if fewer than two came.
-        """
-        with self.lock:
-            before = len(self.statuses)
+    def status_after(self, celsius: float | None) -> str | None:
+        """Publish a temperature (unless None); the second status after it (the first may come from a
+        tick that ran before the monitor took the new temperature), or None if none came within
+        ``STATUS_WITHIN_S`` of the checker's clock."""
+        before = len(self.statuses)
         if celsius is not None:
             self.temperature.publish(Float64(data=float(celsius)))
+            self.clock.settle()
+        came = self.clock.advance_until(lambda: len(self.statuses) - before >= 2, 2 * STATUS_WITHIN_S,
+                                        CLOCK_STEP_S)
+        return self.statuses[-1][1] if came else None
 
-        def fresh() -> str | None:
-            with self.lock:
-                return self.statuses[-1][1] if len(self.statuses) - before >= 2 else None
-
-        poll_until(lambda: fresh() == expected, timeout_s)
-        return fresh()
-
-    def status_counts(self, expected_hz: float, seconds: float = 1.0) -> tuple[int, int]:
-        """(statuses received, ticks of a reference timer at ``expected_hz``) over the next ``seconds``.
-
-        The reference timer runs on this probe, in the same executor as the monitor's timer, so a
-        busy machine delays both alike (rcl skips the periods a late timer missed). A retuned timer
-        gets ``SETTLE_S`` to settle first.
-        """
-        time.sleep(SETTLE_S)
-        ticks: list[float] = []
-        timer = self.rt.call_in_executor(
-            lambda: self.create_timer(1.0 / expected_hz, lambda: ticks.append(time.monotonic())))
-        start = time.monotonic()
-        time.sleep(seconds)  # the measurement window
-        self.rt.call_in_executor(lambda: self.destroy_timer(timer))
-        end = time.monotonic()
-        with self.lock:
-            statuses = sum(start <= t <= end for t, _ in self.statuses)
-        return statuses, sum(start <= t <= end for t in ticks)
+    def statuses_in(self, seconds: float) -> int:
+        """How many statuses came over the next ``seconds`` of the checker's clock."""
+        start = self.clock.now_s
+        self.clock.advance(seconds, CLOCK_STEP_S)
+        return sum(t > start for t, _ in self.statuses)
 
 
 def check_overheat_monitor(node_class, rt=None) -> CheckReport:
     """Exercise 06: set good and bad parameters on ``node_class`` and watch what it publishes.
 
-    ``node_class`` must pass ``**kwargs`` on to Node (the checker overrides status_topic).
-    Returns the CheckReport; ``rt`` defaults to this kernel's runtime.
+    ``node_class`` must pass ``**kwargs`` on to Node (the checker overrides status_topic). The monitor
+    runs on the checker's clock (:func:`~course_helpers.checks.student_on_clock`): its rate is counted
+    in that clock's time, exactly. Returns the CheckReport; ``rt`` defaults to this kernel's runtime.
     """
     rt = rt or get_runtime()
     report = CheckReport("Exercise 06 - configurable overheat monitor")
     overrides = [Parameter("status_topic", value=STATUS_TOPIC)]
-    node = report.run("the node can be created with parameter overrides",
-                      lambda: rt.add(node_class, parameter_overrides=overrides, console=False),
-                      hint="The exercise's first bullet: what must the constructor take, and pass on "
-                           "to Node?")
-    if node is None:
-        return report
-    probe = rt.add(OverheatProbe, rt, console=False)
-    try:
+    with student_on_clock(report, rt, node_class, "overheat_checker_graph", parameter_overrides=overrides,
+                          created="the node can be created with parameter overrides",
+                          hint="The exercise's first bullet: what must the constructor take, and pass on "
+                               "to Node?") as (node, _graph, clock):
+        if node is None:
+            return report
+        probe = clock.drive(rt.build(OverheatProbe, clock))
+        clock.wait_matched()
         if _check_declarations(report, node):
-            _check_behaviour(report, probe, node)
-    finally:
-        rt.remove(probe)
-        rt.remove(node)
+            if report.add("its parameter services answer", _parameter_services_ready(probe, node), "",
+                          "Leave start_parameter_services at its default (True): the checker sets "
+                          "parameters through them, as `ros2 param set` does."):
+                _check_behaviour(report, probe, node)
+            callback_errors_criterion(report, clock.errors)
     return report
+
+
+def _parameter_services_ready(probe: OverheatProbe, node: Node) -> bool:
+    """True once the checker's parameter client has matched the monitor's set_parameters service. The
+    graph lists this process's own services at once; a listed one matches a moment later."""
+    services = node.get_service_names_and_types_by_node(node.get_name(), node.get_namespace())
+    if not any(name == f"{node.get_fully_qualified_name()}/set_parameters" for name, _types in services):
+        return False
+    return poll_until(probe.monitor_parameters.services_are_ready, MATCH_TIMEOUT_S)
 
 
 def _check_declarations(report: CheckReport, node: Node) -> bool:
@@ -152,7 +139,8 @@ def _check_declarations(report: CheckReport, node: Node) -> bool:
 
 def _check_behaviour(report: CheckReport, probe: OverheatProbe, node: Node) -> None:
     if not report.add(f"it publishes its status on status_topic ({STATUS_TOPIC})",
-                      poll_until(lambda: probe.latest() is not None, 3.0), "",
+                      probe.clock.advance_until(lambda: probe.latest() is not None, STATUS_WITHIN_S,
+                                                CLOCK_STEP_S), "",
                       "TODO 3: the publisher's topic is the parameter's value, and a timer publishes."):
         return
     got = probe.latest()
@@ -161,39 +149,43 @@ def _check_behaviour(report: CheckReport, probe: OverheatProbe, node: Node) -> N
                "The exercise says what the status is before the first reading.")
     _check_rejections(report, probe)
     for celsius, expected in ((25.0, "ok"), (55.0, "warning"), (85.0, "critical")):
-        got = probe.status_after(celsius, expected)
+        got = probe.status_after(celsius)
         report.add(f"at {celsius:g} °C (warning_c 50, critical_c 80) it reports {expected!r}",
                    got == expected, "" if got == expected else f"got {got!r}",
                    "The exercise's timer bullet says which status goes with which temperature.")
     accepted = probe.set_remote("critical_c", 90.0).successful
-    got = probe.status_after(None, "warning")
+    got = probe.status_after(None)
     report.add("after critical_c is set to 90, 85 °C becomes 'warning'", accepted and got == "warning",
                "" if accepted and got == "warning" else
                ("the change was rejected" if not accepted else f"got {got!r}"),
                "Does the status use the thresholds as they are now, or as they were at start-up?")
-    _check_rate(report, probe, node, "it publishes at about 5 Hz by default", 5.0, True,
+    _check_rate(report, probe, node, "it publishes at 5 Hz by default", 5.0, True,
                 "Where does your timer's period come from?")
     accepted = probe.set_remote("rate_hz", 20.0).successful
-    _check_rate(report, probe, node, "after rate_hz is set to 20, it publishes at about 20 Hz", 20.0,
+    _check_rate(report, probe, node, "after rate_hz is set to 20, it publishes at 20 Hz", 20.0,
                 accepted, "TODO 2, and section 2's talker: what acts on a change once it is applied?")
 
 
 def _check_rate(report: CheckReport, probe: OverheatProbe, node: Node, name: str, hz: float, accepted: bool,
                 hint: str) -> None:
-    """A timer of the node has the period 1/hz (read from the node: exact on any machine), and the
-    statuses come about as often as a timer at hz beside it ticks (within RATE_RATIO: that timer is
-    what publishes them; a busy machine delays both timers alike)."""
+    """A timer of the node has the period 1/hz (read from the node), and the statuses come hz times a
+    second of the checker's clock (counted over ``RATE_WINDOW_S``, give or take one: the window's edges
+    fall between ticks). A retuned timer's current period is still the old one (rcl's timer keeps the
+    next call it had planned): the count starts at the first status after the change."""
     if not accepted:
         report.add(name, False, "the change was rejected", hint)
         return
     periods_ms = sorted(timer.timer_period_ns / 1e6 for timer in node.timers if not timer.is_canceled())
     timed = any(abs(period - 1e3 / hz) < 0.5 for period in periods_ms)
-    statuses, ticks = probe.status_counts(hz)
-    ok = timed and ticks > 0 and RATE_RATIO[0] <= statuses / ticks <= RATE_RATIO[1]
+    before = len(probe.statuses)
+    probe.clock.advance_until(lambda: len(probe.statuses) > before, STATUS_WITHIN_S, CLOCK_STEP_S)
+    statuses = probe.statuses_in(RATE_WINDOW_S)
+    expected = hz * RATE_WINDOW_S
+    ok = timed and abs(statuses - expected) <= 1
     report.add(name, ok, "" if ok else
                f"timer periods {', '.join(f'{p:g}' for p in periods_ms) or 'none'} ms, 1/{hz:g} Hz is "
-               f"{1e3 / hz:g} ms; {statuses} statuses while a {hz:g} Hz timer beside it ticked {ticks} times",
-               hint)
+               f"{1e3 / hz:g} ms; {statuses} statuses in {RATE_WINDOW_S:g} s of the checker's clock "
+               f"(expected {expected:g})", hint)
 
 
 def _check_rejections(report: CheckReport, probe: OverheatProbe) -> None:
