@@ -204,6 +204,19 @@ class LoggerMissingAngularZ(solution.CmdVelCsvLogger):
         self.file.flush()
 
 
+class LoggerOnTheWallClock(solution.CmdVelCsvLogger):
+    """Wrong: stamps rows with time.time(), the wall clock, not the node's clock: in a replay or a
+    simulation the rows would not line up with the messages' time."""
+
+    def on_twist(self, msg):
+        self.writer.writerow([time.time(), msg.linear.x, msg.linear.y, msg.linear.z,
+                              msg.angular.x, msg.angular.y, msg.angular.z])
+        self.file.flush()
+
+
+TIME_S = "time_s is the receive time on the node's clock, in seconds"
+
+
 class LoggerOnTheMonotonicClock(solution.CmdVelCsvLogger):
     """Wrong: stamps rows with time.monotonic(), seconds since boot rather than since the epoch."""
 
@@ -229,8 +242,8 @@ CSV_WRONG = [
     pytest.param(LoggerWritingTwice, {"one row per message (5)"}, id="two-rows"),
     pytest.param(LoggerMissingAngularZ, {"velocities in the right columns, in message order"},
                  id="missing-column"),
-    pytest.param(LoggerOnTheMonotonicClock,
-                 {"time_s is the receive time in seconds since the epoch, in order"}, id="monotonic-clock"),
+    pytest.param(LoggerOnTheMonotonicClock, {TIME_S}, id="monotonic-clock"),
+    pytest.param(LoggerOnTheWallClock, {TIME_S}, id="wall-clock"),
     pytest.param(LoggerThatRaises, {"callbacks raised no errors"}, id="callback-raises"),
 ]
 CSV_INTRUDER = "no other node publishes on /cmd_vel"  # see the last test

@@ -16,7 +16,6 @@ import os
 import shutil
 import tempfile
 import time
-from itertools import pairwise
 
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import Imu
@@ -30,9 +29,8 @@ from course_helpers.chapters.ch03_topics import (
     sensor_topics,
     sent_rate,
 )
-from course_helpers.checks import CheckReport
+from course_helpers.checks import CheckReport, callback_errors_criterion, student_on_clock
 from course_helpers.core.names import full_name
-from course_helpers.core.waiting import poll_until, sleep_unless
 
 TILT_THRESHOLD_DEG = 15.0
 # (roll, pitch, yaw) in degrees, and whether the attitude is tilted by more than 15°
@@ -50,6 +48,10 @@ TILT_CASES = [
 ]
 CSV_COLUMNS = ["time_s", "linear_x", "linear_y", "linear_z", "angular_x", "angular_y", "angular_z"]
 SENSOR_COUNT, SENSOR_RATE_HZ = 10, 100.0
+CASE_STEP_S = 0.1  # the checker's clock moves this much after each scripted attitude
+CSV_PERIOD_S = 0.1  # one Twist every 0.1 s of the checker's clock
+STARTS_HINT = ("Run the class cell first; its __init__ must call super().__init__(name) and take exactly "
+               "the arguments the exercise gives.")
 
 
 def _tilt_of(roll: float, pitch: float) -> float:
@@ -61,18 +63,13 @@ def _node_name(node) -> str:
     return node.get_fully_qualified_name()
 
 
-def _endpoint_types(rt, topic: str, node, publishers: bool) -> list[str]:
-    infos = (rt.graph.get_publishers_info_by_topic(topic) if publishers
-             else rt.graph.get_subscriptions_info_by_topic(topic))
+def _endpoint_types(graph, topic: str, node, publishers: bool) -> list[str]:
+    """The types of ``node``'s publishers (or subscriptions) on ``topic``, as ``graph`` (a node) sees
+    them; the nodes of this process are listed as soon as they exist."""
+    infos = (graph.get_publishers_info_by_topic(topic) if publishers
+             else graph.get_subscriptions_info_by_topic(topic))
     name, namespace = node.get_name(), node.get_namespace()
     return [i.topic_type for i in infos if i.node_name == name and i.node_namespace == namespace]
-
-
-def _wait_for_endpoint(rt, topic, node, publishers, timeout=2.0) -> list[str]:
-    """The types of ``node``'s publishers (or subscriptions) on ``topic``, once any shows up
-    in the graph within ``timeout`` seconds; an empty list if none does."""
-    poll_until(lambda: _endpoint_types(rt, topic, node, publishers), timeout)
-    return _endpoint_types(rt, topic, node, publishers)
 
 
 def _types_detail(types: list[str], wanted: str) -> str:
@@ -82,15 +79,15 @@ def _types_detail(types: list[str], wanted: str) -> str:
     return f"found: {', '.join(types)}" if types else "none found in the graph"
 
 
-def _other_publishers(rt, topic: str, allowed: set[str]) -> list[str]:
+def _other_publishers(graph, topic: str, allowed: set[str]) -> list[str]:
     """Full names of the nodes publishing on ``topic`` other than those in ``allowed``."""
-    names = {full_name(i.node_namespace, i.node_name) for i in rt.graph.get_publishers_info_by_topic(topic)}
+    names = {full_name(i.node_namespace, i.node_name) for i in graph.get_publishers_info_by_topic(topic)}
     return sorted(names - allowed)
 
 
-def _no_intruders(report: CheckReport, rt, topics: list[str], allowed: set[str]) -> bool:
+def _no_intruders(report: CheckReport, graph, topics: list[str], allowed: set[str]) -> bool:
     """A criterion: nobody but the checker and the student's node publishes on ``topics``."""
-    others = sorted({n for t in topics for n in _other_publishers(rt, t, allowed)})
+    others = sorted({n for t in topics for n in _other_publishers(graph, t, allowed)})
     return report.add(f"no other node publishes on {' or '.join(topics)}", not others,
                       f"also published by {', '.join(others)}" if others else "",
                       hint="Their messages would mix with the checker's. Stop them first, e.g. "
@@ -98,41 +95,26 @@ def _no_intruders(report: CheckReport, rt, topics: list[str], allowed: set[str])
                            "rt.stop_child(label) for a child process, then check again.")
 
 
-def _no_callback_errors(report: CheckReport, rt, errors_before: int) -> bool:
-    """A criterion: no callback raised since the runtime had ``errors_before`` errors."""
-    errors = rt.errors[errors_before:]
-    return report.add("callbacks raised no errors", not errors, errors[0].splitlines()[0] if errors else "",
-                      hint="Read the traceback in the node's console under this cell.")
-
-
-def _start_student_node(report: CheckReport, rt, node_class, *args):
-    return report.run("the node starts", lambda: rt.add(node_class, *args),
-                      hint="Run the class cell first; its __init__ must call super().__init__(name) "
-                           "and take exactly the arguments the exercise gives.")
-
-
 # ---------------------------------------------------------------------- exercise 1
 def check_tilt_warning(node_class, rt=None) -> CheckReport:
     """Check a tilt-warning node class: warnings on /safety/tilt_warning exactly when tilt > 15°.
 
     ``node_class()`` builds the node (no arguments); ``rt`` is the course runtime (default: this
-    process's). Returns a :class:`CheckReport`, one criterion per scripted attitude.
+    process's). The node runs on the checker's clock (:func:`~course_helpers.checks.student_on_clock`):
+    after each scripted attitude, every warning the node was going to publish has arrived, so "no
+    warning" is exact. Returns a :class:`CheckReport`, one criterion per scripted attitude.
     """
     from course_helpers.core.runtime import get_runtime
 
     rt = rt or get_runtime()
     report = CheckReport("Exercise 1: IMU tilt warning")
-    errors_before = len(rt.errors)
-    node = _start_student_node(report, rt, node_class)
-    if node is None:
-        return report
-    report.add("the node starts", True, _node_name(node))
-    probe = None
-    try:
-        _wait_for_endpoint(rt, "/imu", node, publishers=False)
-        sub_types = _endpoint_types(rt, "/imu", node, publishers=False)
-        pub_types = _wait_for_endpoint(rt, "/safety/tilt_warning", node, publishers=True,
-                                       timeout=0.5 if not sub_types else 2.0)
+    with student_on_clock(report, rt, node_class, "tilt_checker", created="the node starts",
+                          hint=STARTS_HINT) as (node, probe, clock):
+        if node is None:
+            return report
+        report.add("the node starts", True, _node_name(node))
+        sub_types = _endpoint_types(probe, "/imu", node, publishers=False)
+        pub_types = _endpoint_types(probe, "/safety/tilt_warning", node, publishers=True)
         subscribes = report.add("subscribes to /imu with type sensor_msgs/msg/Imu",
                                 sub_types == ["sensor_msgs/msg/Imu"], _types_detail(sub_types, "Imu"),
                                 hint="TODO 2: the exercise names the topic and its message type; "
@@ -145,44 +127,36 @@ def check_tilt_warning(node_class, rt=None) -> CheckReport:
             report.add("scripted attitudes", False, "not run: the node must subscribe and publish first",
                        hint="Fix the two criteria above, then check again.")
             return report
-        # One process cannot use a topic name with two types, so the probe comes after the type check.
-        probe = rt.node("tilt_checker", console=False)
+        # One process cannot use a topic name with two types, so the probe's ends come after the type check.
         warnings: list[str] = []
         imu_pub = probe.create_publisher(Imu, "/imu", 10)
         probe.create_subscription(String, "/safety/tilt_warning", lambda m: warnings.append(m.data), 10)
-        rt.wait_until(lambda: imu_pub.get_subscription_count() >= 1, 5, "the node's /imu subscription")
-        if not _no_intruders(report, rt, ["/imu", "/safety/tilt_warning"],
+        clock.wait_matched()
+        if not _no_intruders(report, probe, ["/imu", "/safety/tilt_warning"],
                              {_node_name(probe), _node_name(node)}):
             return report
         for (roll, pitch, yaw), tilted in TILT_CASES:
-            _run_tilt_case(report, rt, imu_pub, warnings, roll, pitch, yaw, tilted, errors_before)
-        _no_callback_errors(report, rt, errors_before)
-    finally:
-        rt.remove(node)
-        if probe is not None:
-            rt.remove(probe)
+            _run_tilt_case(report, clock, imu_pub, warnings, roll, pitch, yaw, tilted)
+        callback_errors_criterion(report, clock.errors)
     return report
 
 
-def _run_tilt_case(report, rt, publisher, warnings, roll, pitch, yaw, tilted, errors_before) -> None:
+def _run_tilt_case(report, clock, publisher, warnings, roll, pitch, yaw, tilted) -> None:
     warnings.clear()
     msg = imu_message(roll, pitch, yaw)
-    msg.header.stamp = rt.graph.get_clock().now().to_msg()
+    msg.header.stamp = clock.node.get_clock().now().to_msg()
     publisher.publish(msg)
+    clock.step(CASE_STEP_S)  # the node's callbacks have run: whatever it warns has arrived
     tilt = _tilt_of(roll, pitch)
     label = f"roll {roll:>3}°, pitch {pitch:>3}°, yaw {yaw:>2}° (tilt {tilt:4.1f}°)"
     if tilted:
-        # a callback that raised will not warn: stop waiting as soon as it has
-        poll_until(lambda: warnings or len(rt.errors) > errors_before, 2.0)
         hint = ("Reread how the exercise defines tilt from the orientation quaternion: roll and pitch "
                 "both count, together.")
-        report.add(f"{label}: warning", bool(warnings), "" if warnings else "no warning within 2 s", hint)
+        report.add(f"{label}: warning", bool(warnings), "" if warnings else "no warning", hint)
     else:
-        sleep_unless(lambda: warnings, 0.3)  # a wrong warning may come within 0.3 s
         hint = ("Reread the exercise: which attitudes count as tilted, and which rotation does not "
                 "change the tilt at all?")
-        report.add(f"{label}: no warning", not warnings,
-                   f"got {warnings[0]!r}" if warnings else "", hint)
+        report.add(f"{label}: no warning", not warnings, f"got {warnings[0]!r}" if warnings else "", hint)
 
 
 # ---------------------------------------------------------------------- exercise 2
@@ -196,10 +170,12 @@ CSV_TWISTS = [  # (linear x, y, z, angular x, y, z): every column different, so 
 
 
 def check_cmd_vel_logger(node_class, rt=None) -> CheckReport:
-    """Check a /cmd_vel CSV logger: header, one flushed row per Twist, values in the right columns.
+    """Check a /cmd_vel CSV logger: header, one flushed row per Twist, values in the right columns, and
+    the receive time on the node's clock.
 
-    ``node_class(csv_path)`` builds the node; ``rt`` is the course runtime (default: this
-    process's). Returns a :class:`CheckReport`.
+    ``node_class(csv_path)`` builds the node; ``rt`` is the course runtime (default: this process's).
+    The node runs on the checker's clock, so each Twist's receive time is known exactly: the checker
+    sends one every ``CSV_PERIOD_S`` of its clock. Returns a :class:`CheckReport`.
     """
     from course_helpers.core.runtime import get_runtime
 
@@ -207,44 +183,50 @@ def check_cmd_vel_logger(node_class, rt=None) -> CheckReport:
     report = CheckReport("Exercise 2: CSV logger of /cmd_vel")
     folder = tempfile.mkdtemp(prefix="cmd-vel-check-")
     path = os.path.join(folder, "cmd_vel.csv")
-    errors_before = len(rt.errors)
-    node = _start_student_node(report, rt, node_class, path)
-    if node is None:
-        shutil.rmtree(folder, ignore_errors=True)
-        return report
-    report.add("the node starts", True, f"{_node_name(node)} writing {os.path.basename(path)}")
-    probe = None
     try:
-        sub_types = _wait_for_endpoint(rt, "/cmd_vel", node, publishers=False)
-        if not report.add("subscribes to /cmd_vel with type geometry_msgs/msg/Twist",
-                          sub_types == ["geometry_msgs/msg/Twist"], _types_detail(sub_types, "Twist"),
-                          hint="TODO 2: the exercise names the topic and its message type; section 1 "
-                               "shows how a node subscribes."):
-            return report
-        probe = rt.node("cmd_vel_checker", console=False)
-        publisher = probe.create_publisher(Twist, "/cmd_vel", 10)
-        rt.wait_until(lambda: publisher.get_subscription_count() >= 1, 5, "the logger's subscription")
-        if not _no_intruders(report, rt, ["/cmd_vel"], {_node_name(probe)}):
-            return report
-        started = time.time()
-        for values in CSV_TWISTS:
-            publisher.publish(_twist(*values))
-            time.sleep(0.02)
-        expected_lines = 1 + len(CSV_TWISTS)
-        poll_until(lambda: len(_read_lines(path)) >= expected_lines, 3.0)
-        lines = _read_lines(path)
-        report.add("rows are on disk while the node runs", len(lines) >= expected_lines,
-                   f"{len(lines)} line(s) in the file after 5 messages",
-                   hint="A file object keeps written rows in a buffer; the exercise's third bullet "
-                        "says what to do after each row (TODO 3).")
-        _check_csv_content(report, lines, started)
-        _no_callback_errors(report, rt, errors_before)
+        with student_on_clock(report, rt, _Logging(node_class, path), "cmd_vel_checker",
+                              created="the node starts", hint=STARTS_HINT) as (node, probe, clock):
+            if node is None:
+                return report
+            report.add("the node starts", True, f"{_node_name(node)} writing {os.path.basename(path)}")
+            sub_types = _endpoint_types(probe, "/cmd_vel", node, publishers=False)
+            if not report.add("subscribes to /cmd_vel with type geometry_msgs/msg/Twist",
+                              sub_types == ["geometry_msgs/msg/Twist"], _types_detail(sub_types, "Twist"),
+                              hint="TODO 2: the exercise names the topic and its message type; section 1 "
+                                   "shows how a node subscribes."):
+                return report
+            publisher = probe.create_publisher(Twist, "/cmd_vel", 10)
+            clock.wait_matched()
+            if not _no_intruders(report, probe, ["/cmd_vel"], {_node_name(probe)}):
+                return report
+            sent_at = []
+            for values in CSV_TWISTS:
+                clock.step(CSV_PERIOD_S)
+                publisher.publish(_twist(*values))
+                sent_at.append(clock.now_s)
+                clock.settle()
+            lines = _read_lines(path)  # while the node runs: the rows must be on disk already
+            expected_lines = 1 + len(CSV_TWISTS)
+            report.add("rows are on disk while the node runs", len(lines) >= expected_lines,
+                       f"{len(lines)} line(s) in the file after 5 messages",
+                       hint="A file object keeps written rows in a buffer; the exercise's third bullet "
+                            "says what to do after each row (TODO 3).")
+            _check_csv_content(report, lines, sent_at)
+            callback_errors_criterion(report, clock.errors)
     finally:
-        rt.remove(node)
-        if probe is not None:
-            rt.remove(probe)
         shutil.rmtree(folder, ignore_errors=True)
     return report
+
+
+class _Logging:
+    """``node_class(path)`` as a factory of no arguments (what student_on_clock builds)."""
+
+    def __init__(self, node_class, path: str):
+        self.node_class, self.path = node_class, path
+        self.__name__ = getattr(node_class, "__name__", "the logger")
+
+    def __call__(self, **kwargs):
+        return self.node_class(self.path, **kwargs)
 
 
 def _twist(lx, ly, lz, ax, ay, az) -> Twist:
@@ -262,7 +244,7 @@ def _read_lines(path: str) -> list[list[str]]:
         return []
 
 
-def _check_csv_content(report: CheckReport, lines: list[list[str]], started: float) -> None:
+def _check_csv_content(report: CheckReport, lines: list[list[str]], sent_at: list[float]) -> None:
     header = lines[0] if lines else []
     header_ok = report.add("header row is " + ",".join(CSV_COLUMNS), header == CSV_COLUMNS,
                            "" if header == CSV_COLUMNS else f"got {','.join(header) or 'nothing'}",
@@ -295,12 +277,14 @@ def _check_csv_content(report: CheckReport, lines: list[list[str]], started: flo
         except (ValueError, IndexError):
             stamps = []
             break
-    ordered = bool(stamps) and all(b >= a for a, b in pairwise(stamps))
-    recent = bool(stamps) and all(started - 5 <= s <= time.time() + 5 for s in stamps)
-    report.add("time_s is the receive time in seconds since the epoch, in order", ordered and recent,
-               "" if ordered and recent else "time_s missing, not a number, out of order or not "
-                                               "in seconds since the epoch",
-               hint="The exercise's second bullet names the clock to read and the unit.")
+    exact = len(stamps) == len(sent_at) and all(math.isclose(s, t, abs_tol=1e-3)
+                                                for s, t in zip(stamps, sent_at, strict=True))
+    report.add("time_s is the receive time on the node's clock, in seconds", exact,
+               "" if exact else (f"time_s {', '.join(f'{s:.3f}' for s in stamps[:3])}..., the node's clock "
+                                 f"read {', '.join(f'{t:.3f}' for t in sent_at[:3])}..." if stamps
+                                 else "time_s missing or not a number"),
+               hint="The exercise's second bullet names the clock to read (the node's own, "
+                    "self.get_clock().now(): the checker runs your node on a clock it owns) and the unit.")
 
 
 def _is_number_row(row: list[str]) -> bool:
