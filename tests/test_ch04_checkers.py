@@ -8,6 +8,8 @@ solutions also check that the tables cover every criterion the checkers report.
 
 from __future__ import annotations
 
+import time
+
 import pytest
 from course_interfaces.srv import AddTwoInts
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -112,7 +114,26 @@ class BatteryWithSuccessInverted(BatteryMonitor):
         return response
 
 
+class BatteryThatRaises(BatteryMonitor):
+    """Wrong: keeps the whole message instead of its data (the percent format then raises)."""
+
+    def on_level(self, msg):
+        self.level = msg
+
+
+class BatteryJudgingTheRoundedLevel(BatteryMonitor):
+    """Wrong: decides 'low' from the level rounded for the message, so 19.6 % (shown as 20%) passes as
+    healthy although it is below 20 %."""
+
+    def on_status(self, request, response):
+        super().on_status(request, response)
+        if self.level is not None and round(self.level) >= 20:
+            response.success, response.message = True, f"battery at {round(self.level)}%"
+        return response
+
+
 AFTER_57 = "after a reading of 57%: success is True and the message is not a warning"
+AFTER_19 = "after a reading of 19.6%: success is False and the message is a low-battery warning"
 AFTER_12 = "after a reading of 12.4%: success is False and the message is a low-battery warning"
 AFTER_20 = "after a reading of 20%: success is True and the message is not a warning"
 BATTERY_WRONG = [
@@ -128,6 +149,8 @@ BATTERY_WRONG = [
                                        "after a reading of 12.4%: the message contains '12%'",
                                        "after a reading of 20%: the message contains '20%'"}, id="decimals"),
     pytest.param(BatteryWithSuccessInverted, {AFTER_57, AFTER_12, AFTER_20}, id="success-inverted"),
+    pytest.param(BatteryJudgingTheRoundedLevel, {AFTER_19}, id="rounded-before-judged"),
+    pytest.param(BatteryThatRaises, {"callbacks raised no errors"}, id="callback-raises"),
 ]
 
 
@@ -257,7 +280,7 @@ RELAY_WRONG = [
     pytest.param(RelayWithSensorQos, {"the checker's client finds the service"}, id="sensor-qos"),
     pytest.param(RelayToAMisspelledBackend, {"it has a client of add_two_ints that found the backend"},
                  id="backend-name"),
-    pytest.param(BlockingRelay, {"it answers 2 + 3 within 2 s"}, id="blocking-call"),
+    pytest.param(BlockingRelay, {"it answers 2 + 3 without a deadlock"}, id="blocking-call"),
     pytest.param(RelayThatForgetsTheSum, {"it answers 2 + 3 = 5"}, id="forgets-the-sum"),
     pytest.param(LocalAdder, {"it asked the add_two_ints backend for the sum"}, id="adds-locally"),
     pytest.param(RelayThatRemembers, {"it answers three requests sent at once"}, id="remembers"),
@@ -278,8 +301,12 @@ def test_relay_checker_fails_each_criterion_on_a_wrong_solution(rt, wrong, faili
     assert failing <= _failed(report), report.summary()
 
 
-def test_relay_checker_reports_the_deadlock_in_words(rt):
+def test_relay_checker_reports_the_deadlock_in_words_as_soon_as_the_callback_blocks(rt):
+    started = time.monotonic()
     report = check_relay_server(BlockingRelay, rt)
-    assert any("deadlock" in c.detail for c in report.criteria if not c.passed)
+    assert time.monotonic() - started < 10  # seen in the thread's stack, not after a timeout
+    failed = [c for c in report.criteria if not c.passed]
+    assert [c.name for c in failed] == ["it answers 2 + 3 without a deadlock"], report.summary()
+    assert "waits in client.call() on the only thread that could deliver its answer" in failed[0].detail
     assert not any("call_async" in c.hint or "async def" in c.hint for c in report.criteria), (
         "hints point to the text; they do not write the fix")

@@ -15,7 +15,9 @@ Everything runs real rclpy nodes over Fast DDS.
 
 from __future__ import annotations
 
+import os
 import statistics
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -36,6 +38,7 @@ DEMO_NAMESPACE = "/deadlock_demo"
 ADD_SERVICE = "add_two_ints"
 EXECUTOR_KINDS = ("single", "multi")
 TEARDOWN_TIMEOUT_S = 3.0  # how long close() keeps releasing stuck calls before it gives up waiting
+CLIENT_MODULE = os.path.join("rclpy", "client.py")  # where Client.call() waits for its answer
 RELEASE_PERIOD_S = 0.02  # how often close() releases calls (a released callback may call again)
 
 
@@ -124,6 +127,26 @@ class IsolatedExecutor:
         self.nodes.append(node)
         self.executor.add_node(node)
         return node
+
+    def waiting_in_a_call(self) -> str:
+        """The callback of this single-threaded executor that waits in ``Client.call()``, as
+        'node.callback', or '' if none does.
+
+        Such a callback waits for an answer that only this executor's one thread could deliver, and
+        that thread is the one waiting: a deadlock, by construction, whatever the machine's speed.
+        """
+        if self.kind != "single" or self._spinner is None or self._spinner.thread.ident is None:
+            return ""
+        frame = sys._current_frames().get(self._spinner.thread.ident)
+        in_call = False
+        while frame is not None:
+            code = frame.f_code
+            if code.co_name == "call" and code.co_filename.endswith(CLIENT_MODULE):
+                in_call = True
+            elif in_call and "self" in frame.f_locals and isinstance(frame.f_locals["self"], Node):
+                return f"{frame.f_locals['self'].get_name()}.{code.co_name}"
+            frame = frame.f_back
+        return "a callback" if in_call else ""
 
     def wait_for(self, predicate, timeout_s: float) -> bool:
         """Wait up to ``timeout_s`` seconds for ``predicate()``; True if it became true."""

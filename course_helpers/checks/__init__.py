@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 from rclpy.node import Node
 
 from course_helpers.core.node_hook import destroy_fully
-from course_helpers.core.sim_clock import SimClock
+from course_helpers.core.sim_clock import MATCH_TIMEOUT_S, SimClock
+from course_helpers.core.waiting import poll_until
 
 
 @dataclass
@@ -153,3 +154,18 @@ def callback_errors_criterion(report: CheckReport, errors: list[BaseException]) 
     first = f"{type(errors[0]).__name__}: {errors[0]}" if errors else ""
     return report.add("callbacks raised no errors", not errors, first.splitlines()[0] if first else "",
                       hint="Run your node in a cell of its own and read the traceback in its console.")
+
+
+def client_reaches(client, service) -> tuple[bool, str]:
+    """Whether ``client`` can reach ``service`` (both of this process): (True, '') once they have
+    matched, or (False, why) at once when their QoS profiles cannot match (a client's requests and a
+    server's replies each need a compatible pair; rclpy's own compatibility check decides).
+    A compatible pair matches a moment after both exist; the wait only bounds a hang."""
+    from rclpy.qos import QoSCompatibility, qos_check_compatible
+
+    for writer, reader, what in ((client.qos_profile, service.qos_profile, "requests"),
+                                 (service.qos_profile, client.qos_profile, "replies")):
+        compatible, reason = qos_check_compatible(writer, reader)
+        if compatible == QoSCompatibility.ERROR:
+            return False, f"the {what} cannot flow: {reason}"
+    return poll_until(client.service_is_ready, MATCH_TIMEOUT_S), ""

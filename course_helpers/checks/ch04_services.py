@@ -7,13 +7,15 @@ from std_msgs.msg import Float32
 from std_srvs.srv import Trigger
 
 from course_helpers.chapters.ch04_services import AdderServer, IsolatedExecutor
-from course_helpers.checks import CheckReport, student_node
+from course_helpers.checks import CheckReport, callback_errors_criterion, client_reaches, student_on_clock
 from course_helpers.core.names import full_name
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import interface_name
 from course_helpers.core.waiting import poll_until
 
-ANSWER_TIMEOUT_S = 2.0
+# (level [%], healthy): 19.6 % is below 20 % although its message rounds it to 20%
+BATTERY_CASES = ((57.0, True), (12.4, False), (19.6, False), (20.0, True))
+HANG_S = 30.0  # bounds a hang only: a sound server answers in milliseconds, a deadlock never
 
 
 def offered_services(node: Node) -> dict[str, str]:
@@ -21,25 +23,40 @@ def offered_services(node: Node) -> dict[str, str]:
     return {service.service_name: interface_name(service.srv_type) for service in node.services}
 
 
-def _call(rt, client, request, timeout_s: float = ANSWER_TIMEOUT_S):
-    return rt.wait_for_future(client.call_async(request), timeout_s, f"an answer from {client.srv_name}")
+def _answered_or_deadlocked(box, futures) -> str:
+    """Wait until every future is answered ('') or a callback of ``box`` waits in Client.call() (where,
+    a deadlock by construction); ``HANG_S`` only bounds a hang of another kind ('no answer')."""
+    poll_until(lambda: all(f.done() for f in futures) or box.waiting_in_a_call(), HANG_S)
+    if all(f.done() for f in futures):
+        return ""
+    return box.waiting_in_a_call() or "no answer"
 
 
 def check_battery_server(node_class, rt=None) -> CheckReport:
     """Exercise 04.1: run ``node_class``; query its ``battery_status`` Trigger service at scripted levels.
 
-    ``node_class`` is the student's class (no constructor arguments), ``rt`` the runtime
-    (default: this kernel's). Returns the CheckReport, one criterion per line.
+    The server runs on the checker's clock (:func:`~course_helpers.checks.student_on_clock`): a
+    reading and a call are answered within one settle, so "the answer after this reading" is exact.
+    ``node_class`` is the student's class (no constructor arguments), ``rt`` the runtime (default:
+    this kernel's). Returns the CheckReport, one criterion per line.
     """
     rt = rt or get_runtime()
     report = CheckReport("Exercise 04.1 - battery status service")
-    with student_node(report, rt, node_class, "battery_checker") as (node, probe):
+    with student_on_clock(report, rt, node_class, "battery_checker") as (node, probe, clock):
         if node is not None:
-            _check_battery(rt, report, node, probe)
+            _check_battery(report, node, probe, clock)
+            callback_errors_criterion(report, clock.errors)
     return report
 
 
-def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
+def _ask(clock, client):
+    """Call the Trigger service and settle: its answer, or None if the server gave none."""
+    future = client.call_async(Trigger.Request())
+    clock.settle()
+    return future.result() if future.done() else None
+
+
+def _check_battery(report: CheckReport, node: Node, probe: Node, clock) -> None:
     if not report.add("the node is called battery_monitor", node.get_name() == "battery_monitor",
                       _unless(node.get_name() == "battery_monitor", f"it is called {node.get_name()!r}"),
                       "The exercise names the node: compare it with the name your constructor passes on."):
@@ -52,27 +69,31 @@ def _check_battery(rt, report: CheckReport, node: Node, probe: Node) -> None:
                       "how a node offers one."):
         return
     client = probe.create_client(Trigger, "/battery_status")
-    if not report.add("the checker's client finds the service", poll_until(client.service_is_ready, 3.0),
-                      "", "The service exists but a default client cannot reach it: did you give it a "
-                          "QoS profile of its own?"):
+    service = next(s for s in node.services if s.service_name == "/battery_status")
+    reached, why = client_reaches(client, service)
+    if not report.add("the checker's client finds the service", reached, why,
+                      "The service exists but a default client cannot reach it: did you give it a "
+                      "QoS profile of its own?"):
         return
-    first = report.run("it answers before any reading", lambda: _call(rt, client, Trigger.Request()),
-                       hint="Section 2: what does a service callback give back to rclpy?")
-    if first is None:
+    first = _ask(clock, client)
+    if not report.add("it answers before any reading", first is not None,
+                      "" if first is not None else "no answer (did the callback return the response?)",
+                      "Section 2: what does a service callback give back to rclpy?"):
         return
     report.add("before any reading: success is False and the message says 'no reading'",
                not first.success and "no reading" in first.message.lower(),
                f"got success={first.success}, message={first.message!r}",
                "The exercise's table has a row for the time before the first reading.")
     publisher = probe.create_publisher(Float32, "/battery_level", 10)
-    if not report.add("it subscribes to /battery_level", poll_until(
-            lambda: publisher.get_subscription_count() >= 1, 3.0), "",
-            "TODO 1: the exercise names the topic and its message type."):
+    clock.wait_matched()
+    if not report.add("it subscribes to /battery_level", publisher.get_subscription_count() >= 1, "",
+                      "TODO 1: the exercise names the topic and its message type."):
         return
-    for level, healthy in ((57.0, True), (12.4, False), (20.0, True)):
+    for level, healthy in BATTERY_CASES:
         expected = f"{round(level)}%"
         publisher.publish(Float32(data=level))
-        response = _answer_when(rt, client, lambda r, text=expected: text in r.message)
+        clock.settle()
+        response = _ask(clock, client)
         if response is None or expected not in response.message:
             got = response.message if response is not None else "no answer"
             report.add(f"after a reading of {level:g}%: the message contains '{expected}'", False,
@@ -123,18 +144,23 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
                               "TODO 2: the exercise names the service; its type is the backend's."):
                 return report
             client = probe.create_client(AddTwoInts, full_name(namespace, "add_via_relay"))
-            ready = poll_until(client.service_is_ready, 3.0)
-            if not report.add("the checker's client finds the service", ready, "",
+            service = next(s for s in relay.services
+                           if s.service_name == full_name(namespace, "add_via_relay"))
+            ready, why = client_reaches(client, service)
+            if not report.add("the checker's client finds the service", ready, why,
                               "The service exists but a default client cannot reach it: did you give it a "
                               "QoS profile of its own?"):
                 return report
-            backend_seen = poll_until(lambda: bool(relay.clients) and all(
-                c.service_is_ready() for c in relay.clients), 3.0)
-            if not report.add("it has a client of add_two_ints that found the backend", backend_seen, "",
+            backend_service = full_name(namespace, "add_two_ints")
+            asks = [c for c in relay.clients if relay.resolve_service_name(c.srv_name) == backend_service]
+            backend_seen = bool(asks) and poll_until(lambda: all(c.service_is_ready() for c in asks), HANG_S)
+            clients = ", ".join(c.srv_name for c in relay.clients) or "none"
+            if not report.add("it has a client of add_two_ints that found the backend", backend_seen,
+                              "" if asks else f"its clients: {clients}",
                               "TODO 1: the backend is the add_two_ints service; section 3 shows how a "
                               "node creates a client."):
                 return report
-            _check_relay_answers(rt, report, client, backend, AddTwoInts)
+            _check_relay_answers(box, report, client, backend, AddTwoInts)
         finally:
             rt.remove(probe)
             errors = list(box.errors)
@@ -143,16 +169,18 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
     return report
 
 
-def _check_relay_answers(rt, report, client, backend, add_two_ints) -> None:
+def _check_relay_answers(box, report, client, backend, add_two_ints) -> None:
     before = backend.answered
-    try:
-        response = _call(rt, client, add_two_ints.Request(a=2, b=3))
-    except TimeoutError:
-        report.add(f"it answers 2 + 3 within {ANSWER_TIMEOUT_S:g} s", False,
-                   "no answer: the callback is stuck waiting (deadlock)",
+    future = client.call_async(add_two_ints.Request(a=2, b=3))
+    stuck = _answered_or_deadlocked(box, [future])
+    if stuck:
+        report.add("it answers 2 + 3 without a deadlock", False,
+                   f"{stuck} waits in client.call() on the only thread that could deliver its answer"
+                   if stuck != "no answer" else f"no answer within {HANG_S:g} s",
                    "Section 5 and the exercise's two bullets: why can a callback that waits for "
                    "another service never get its answer on one thread, and what does the client need?")
         return
+    response = future.result()
     report.add("it answers 2 + 3 = 5", response.sum == 5, f"got {response.sum}",
                "Which field of the backend's answer do you copy into your response?")
     report.add("it asked the add_two_ints backend for the sum", backend.answered == before + 1,
@@ -160,34 +188,14 @@ def _check_relay_answers(rt, report, client, backend, add_two_ints) -> None:
                "The exercise asks the relay to get every sum from add_two_ints.")
     pairs = [(-7, 10), (1000, 234), (0, 0)]
     futures = [client.call_async(add_two_ints.Request(a=a, b=b)) for a, b in pairs]
-    try:
-        sums = [rt.wait_for_future(f, ANSWER_TIMEOUT_S, "the relayed sums").sum for f in futures]
-    except TimeoutError:
-        report.add("it answers three requests sent at once", False, "not all were answered in time",
+    if _answered_or_deadlocked(box, futures):
+        report.add("it answers three requests sent at once", False, "not all were answered",
                    "Does something your callback keeps on self outlive its own request?")
         return
+    sums = [f.result().sum for f in futures]
     report.add("it answers three requests sent at once", sums == [a + b for a, b in pairs],
                f"got {sums}", "Does something your callback keeps on self outlive its own request?")
 
 
 def _unless(passed: bool, detail: str) -> str:
     return "" if passed else detail
-
-
-def _answer_when(rt, client, accept, timeout_s: float = 1.5):
-    """Call the Trigger service until ``accept(response)`` or ``timeout_s`` passes.
-
-    Returns the last response, or None if none came (a call unanswered within 1 s ends
-    the asking).
-    """
-    answers = []
-
-    def accepted() -> bool:
-        try:
-            answers.append(_call(rt, client, Trigger.Request(), 1.0))
-        except TimeoutError:
-            return True  # the service stopped answering: stop asking
-        return accept(answers[-1])
-
-    poll_until(accepted, timeout_s, period=0.02)
-    return answers[-1] if answers else None
