@@ -188,6 +188,15 @@ class NeverPublishes(PrivateRobot):
         self.publisher = self.create_publisher(String, "robot_status", 10)
 
 
+class TalksTooOften(PrivateRobot):
+    """Wrong: a period of 0.02 s (50 times a second) instead of 0.2 s."""
+
+    def __init__(self, context=None):
+        super().__init__(context=context)
+        self.destroy_timer(self.timer)
+        self.timer = self.create_timer(0.02, self.tick)
+
+
 class BrokenTick(PrivateRobot):
     """Wrong: publishes a str instead of a String message (the timer callback raises TypeError)."""
 
@@ -197,7 +206,8 @@ class BrokenTick(PrivateRobot):
 
 CONTEXT = "private_context(domain_id) returns an initialised Context in that domain"
 TEAM_HEARS = "its team hears it: a listener process in its domain receives its status"
-CLASS_BLIND = "the class cannot see it: this kernel's domain never lists it"
+CLASS_BLIND = "the class cannot see it: its domain is not the class's"
+RATE = "it publishes its status five times a second"
 
 
 @pytest.mark.parametrize("robot, make_context, criteria", [
@@ -209,7 +219,8 @@ CLASS_BLIND = "the class cannot see it: this kernel's domain never lists it"
     (IgnoresItsContext, private_context, ["PrivateRobot(context=...) builds its node in that context"]),
     (OtherName, private_context, ["the node is named private_robot"]),
     (StatusAsNumber, private_context, ["it publishes std_msgs/msg/String on /robot_status", TEAM_HEARS]),
-    (NeverPublishes, private_context, [TEAM_HEARS]),
+    (NeverPublishes, private_context, [RATE, TEAM_HEARS]),
+    (TalksTooOften, private_context, [RATE]),
     (BrokenTick, private_context, ["callbacks raised no errors"]),
 ])
 def test_private_robot_checker_rejects(rt, robot, make_context, criteria):

@@ -3,34 +3,41 @@
 The student writes ``private_context(domain_id)``, a new rclpy context whose participant joins ROS
 domain ``domain_id``, and ``PrivateRobot(context=...)``, a node named ``private_robot`` that publishes
 a ``std_msgs/String`` on ``robot_status`` five times a second. The checker hands them the spare
-domain reserved for this kernel, spins the node there, and proves with two probes that the team sees
-it (a listener process in that domain hears it) while the class does not (this kernel's domain,
-which stands for the domain the class shares, never lists it). It also checks that the kernel is
-left as it was: the environment its children inherit, and rclpy's signal handlers switched off.
+domain reserved for this kernel. It counts the robot's messages over 1 s of a clock it owns (exact
+on any machine), checks that the robot's domain is not the class's (this kernel's, which stands for
+the domain the class shares: participants of different domains never discover each other), and then
+that its team hears it: a listener process in that domain receives its status. It also checks that
+the kernel is left as it was: the environment its children inherit, and rclpy's signal handlers
+switched off.
 """
 
 from __future__ import annotations
 
 import os
-import time
 
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
 
 from course_helpers.chapters.ch07_dds import ReportingListener, heard_lines
 from course_helpers.checks import CheckReport
 from course_helpers.core.domains import reserve_spare_domain
 from course_helpers.core.executors import SpinThread
+from course_helpers.core.sim_clock import SimClock
 from course_helpers.core.waiting import poll_until
 
 ROBOT_NAME = "private_robot"
 STATUS_TOPIC = "/robot_status"
 STATUS_TYPE = "std_msgs/msg/String"
 TEAM_LISTENER = "team_listener"  # the probe process in the team's domain (label and node name)
-HEARD_MESSAGES = 3  # the team must hear at least this many status messages...
-HEAR_WITHIN_S = 8.0  # ...within this long (a new process starts, discovers and receives)
-HIDDEN_FOR_S = 3.0  # the class must not list the robot during this long after it was built
+HEARD_MESSAGES = 3  # the team must hear at least this many status messages
+HANG_S = 60.0  # bounds a hang only: a listener process starts, discovers and hears within seconds
+STATUS_HZ = 5.0  # the exercise's rate
+RATE_WINDOW_S = 1.0  # [s of the checker's clock] the rate is counted over this long
+RATE = "it publishes its status five times a second"
+TEAM_HEARS = "its team hears it: a listener process in its domain receives its status"
 ENVIRONMENT_PREFIXES = ("ROS_", "RMW_", "FASTRTPS_", "FASTDDS_")  # what children inherit and rcl reads
 
 
@@ -47,22 +54,6 @@ def _restore_environment(saved: dict[str, str]) -> list[str]:
         else:
             os.environ.pop(key, None)
     return changed
-
-
-class _ClassView:
-    """Whether the kernel's domain (the class) has listed the robot or its topic so far."""
-
-    def __init__(self, rt):
-        self.rt = rt
-        self.seen: list[str] = []
-
-    def look(self) -> bool:
-        if not self.seen:
-            nodes = self.rt.graph_nodes()
-            topics = {name for name, _types in self.rt.graph.get_topic_names_and_types()}
-            self.seen = ([f"/{ROBOT_NAME}"] if f"/{ROBOT_NAME}" in nodes else []) + (
-                [STATUS_TOPIC] if STATUS_TOPIC in topics else [])
-        return bool(self.seen)
 
 
 def check_private_robot(node_class, make_context, rt=None) -> CheckReport:
@@ -85,9 +76,6 @@ def check_private_robot(node_class, make_context, rt=None) -> CheckReport:
     rt = rt or get_runtime()
     report = CheckReport("Exercise 07.1 - a robot the class cannot see")
     spare = reserve_spare_domain()
-    # The class's participant exists before the student's: a participant created later would learn
-    # of the robot only at the robot's next periodic announcement, and might miss it in the window.
-    rt.graph_nodes()
     environment = _ros_environment()
     handlers = get_current_signal_handlers_options()
     context = report.run("private_context(domain_id) runs", lambda: make_context(spare),
@@ -145,7 +133,6 @@ def _check_context(report: CheckReport, rt, context, domain: int) -> bool:
 
 
 def _check_robot(report: CheckReport, rt, node_class, context, team_domain: int) -> None:
-    started = time.monotonic()
     node = report.run("PrivateRobot(context=...) builds its node in that context",
                       lambda: node_class(context=context),
                       hint="help(Node): which argument of Node's constructor says where a node lives?")
@@ -162,40 +149,73 @@ def _check_robot(report: CheckReport, rt, node_class, context, team_domain: int)
                "" if name == ROBOT_NAME else f"its name is {name!r}",
                hint="The name is the first argument of super().__init__ in your constructor.")
     topics = dict(node.get_publisher_names_and_types_by_node(name, node.get_namespace()))
-    publishes = topics.get(STATUS_TOPIC) == [STATUS_TYPE]
-    report.add(f"it publishes {STATUS_TYPE} on {STATUS_TOPIC}", publishes,
-               "" if publishes else f"it publishes on: {', '.join(sorted(topics)) or 'nothing'}",
-               hint="Compare the topic name and message type of your publisher with the task.")
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
+    right_type = topics.get(STATUS_TOPIC) == [STATUS_TYPE]
+    publishes = report.add(f"it publishes {STATUS_TYPE} on {STATUS_TOPIC}", right_type,
+                           "" if right_type else f"it publishes on: {', '.join(sorted(topics)) or 'nothing'}",
+                           hint="Compare the topic name and message type of your publisher with the task.")
     errors: list[BaseException] = []
-    spinner = SpinThread(executor, "private-robot", errors.append).start()
-    view = _ClassView(rt)
     try:
-        team = rt.spawn(TEAM_LISTENER, ReportingListener,
-                        params={"name": TEAM_LISTENER, "topic": STATUS_TOPIC.lstrip("/")},
-                        env={"ROS_DOMAIN_ID": str(team_domain)})
-
-        def team_heard() -> bool:
-            view.look()  # the class looks all along
-            return len(heard_lines(team)) >= HEARD_MESSAGES
-
-        heard = poll_until(team_heard, HEAR_WITHIN_S)
-        count = len(heard_lines(team))
-        report.add("its team hears it: a listener process in its domain receives its status", heard,
-                   "" if heard else f"{count} message(s) heard in {HEAR_WITHIN_S:g} s",
-                   hint="Does something publish again and again? Chapter 00 showed the usual way.")
-        # Whatever the class can see stays in its graph while the node lives: looking until
-        # HIDDEN_FOR_S after the node was built gives discovery time to show it.
-        poll_until(view.look, max(0.0, started + HIDDEN_FOR_S - time.monotonic()), period=0.1)
-        report.add("the class cannot see it: this kernel's domain never lists it", not view.seen,
-                   f"the kernel's graph listed {' and '.join(view.seen)}" if view.seen else "",
-                   hint="The class sees everything in its own domain: which domain is your context in?")
+        # (one process cannot use a topic name with two types: the checker listens only to a String)
+        periodic = _check_rate(report, node, context, errors) if publishes else report.add(
+            RATE, False, "not tried: the robot must publish String first", hint="Fix the criterion above.")
+        domain = context.get_domain_id()
+        class_domain = rt.domain.domain_id
+        report.add("the class cannot see it: its domain is not the class's", domain != class_domain,
+                   f"it is in domain {domain}, the class in {class_domain}",
+                   hint="The class sees everything in its own domain: which domain is your context in? "
+                        "(Participants of different domains never discover each other.)")
+        if not (publishes and periodic and domain == team_domain):
+            report.add(TEAM_HEARS, False, "not tried: the robot must publish String periodically in its "
+                       f"team's domain ({team_domain}) first", hint="Fix the criteria above first.")
+        else:
+            _check_team_hears(report, rt, node, context, team_domain, errors)
     finally:
-        rt.stop_child(TEAM_LISTENER)
-        spinner.stop()
-        executor.shutdown(timeout_sec=2)
         node.destroy_node()
     report.add("callbacks raised no errors", not errors,
                f"{type(errors[0]).__name__}: {errors[0]}" if errors else "",
                hint="Run the node's callback yourself once and read the traceback.")
+
+
+def _check_rate(report: CheckReport, node, context, errors: list) -> bool:
+    """The robot on a clock the checker owns, in its own context: how often it publishes in 1 s, exactly."""
+    from std_msgs.msg import String
+
+    clock = SimClock(context=context)
+    heard: list = []
+    try:
+        clock.drive(node)
+        listener = clock.drive(Node("_private_robot_check", context=context, enable_rosout=False,
+                                    start_parameter_services=False))
+        listener.create_subscription(String, STATUS_TOPIC, heard.append, 10)
+        clock.wait_matched()
+        heard.clear()
+        clock.advance(RATE_WINDOW_S, 0.01)
+        errors.extend(clock.errors)
+    finally:
+        driven = [n for n in clock.driven if n is not node]
+        clock.close()
+        for extra in driven:
+            extra.destroy_node()
+        node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, False)])
+    expected = STATUS_HZ * RATE_WINDOW_S
+    return report.add(RATE, abs(len(heard) - expected) <= 1,
+                      f"{len(heard)} in {RATE_WINDOW_S:g} s of its clock",
+                      hint="Does something publish again and again? Chapter 00 showed the usual way.")
+
+
+def _check_team_hears(report: CheckReport, rt, node, context, team_domain: int, errors: list) -> None:
+    """A listener process in the team's domain hears the robot: an event a hang bound only limits."""
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    spinner = SpinThread(executor, "private-robot", errors.append).start()
+    try:
+        team = rt.spawn(TEAM_LISTENER, ReportingListener,
+                        params={"name": TEAM_LISTENER, "topic": STATUS_TOPIC.lstrip("/")},
+                        env={"ROS_DOMAIN_ID": str(team_domain)})
+        heard = poll_until(lambda: len(heard_lines(team)) >= HEARD_MESSAGES, HANG_S)
+        report.add(TEAM_HEARS, heard, "" if heard else f"nothing heard in {HANG_S:g} s",
+                   hint="Is the listener's domain the one your context joined?")
+    finally:
+        rt.stop_child(TEAM_LISTENER)
+        spinner.stop()
+        executor.shutdown(timeout_sec=2)

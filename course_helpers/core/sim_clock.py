@@ -28,6 +28,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.node_hook import outside_builds
 from course_helpers.core.waiting import wait_until
 
 CLOCK_TOPIC = "/clock"
@@ -38,23 +39,28 @@ DEFAULT_STEP_S = 0.01  # s; how far :meth:`SimClock.advance` moves time per step
 
 
 class SimClock:
-    """Publishes ``/clock`` in ``runtime``'s context and spins the nodes it drives, only when told.
+    """Publishes ``/clock`` in ``runtime``'s context (or in ``context``) and spins the nodes it drives,
+    only when told.
 
     ``clock = SimClock(rt)``; ``node = clock.drive(rt.build(MyNode))``; ``clock.advance(2.0)``;
     ``clock.close()``. The driven nodes are not spun by the runtime's executor; the caller destroys
     them. Callback errors are kept in :attr:`errors` (the step goes on).
     """
 
-    def __init__(self, runtime, start_s: float = START_S, name: str = "_course_sim_clock"):
+    def __init__(self, runtime=None, start_s: float = START_S, name: str = "_course_sim_clock",
+                 context=None):
         from rclpy.node import Node
         from rosgraph_msgs.msg import Clock
 
+        if (runtime is None) == (context is None):
+            raise CourseError("give SimClock either the runtime or a context, not both")
+        context = context if context is not None else runtime.context
         self._clock_type = Clock
-        self._runtime = runtime
-        self.node = runtime.build(Node, name, enable_rosout=False, start_parameter_services=False)
+        with outside_builds():  # the clock's own node belongs to no build of the caller's
+            self.node = Node(name, context=context, enable_rosout=False, start_parameter_services=False)
         self._publisher = self.node.create_publisher(
             Clock, CLOCK_TOPIC, QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
-        self._executor = SingleThreadedExecutor(context=runtime.context)
+        self._executor = SingleThreadedExecutor(context=context)
         self._ns = round(start_s * 1e9)
         self.errors: list[BaseException] = []
         self.driven: list = []
