@@ -20,12 +20,8 @@ from rclpy.qos import (
 from std_msgs.msg import Bool, String
 
 from course_helpers.chapters.ch08_qos.liveliness import blind_spells, seconds_without_writer, watched_downtime
-from course_helpers.checks.ch08_qos import (
-    check_channel_qos,
-    check_deadline_watchdog,
-    check_heartbeat,
-    check_mismatched_subscriber,
-)
+from course_helpers.checks.ch08_qos import check_channel_qos, check_mismatched_subscriber
+from course_helpers.checks.ch08_qos_events import check_deadline_watchdog, check_heartbeat
 from course_helpers.notebook.solution import solution_source
 from course_helpers.solutions import ch08_qos as reference
 

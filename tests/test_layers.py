@@ -30,7 +30,7 @@ MAX_MODULE_LINES = 500
 
 # --- what core/ may import besides the standard library: two named lists
 # ROS 2's own Python packages, from the Jazzy wheels.
-ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser"}
+ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser", "rosgraph_msgs"}
 # A few other pinned libraries, each for one job and only in the modules named.
 CORE_EXTRAS = {
     "yaml": ({"course_helpers.core.msg_yaml"}, "messages as YAML, the way `ros2 topic echo` prints them"),

@@ -25,12 +25,18 @@ from course_helpers.core.waiting import poll_until
 
 @dataclass
 class Criterion:
-    """One thing a checker verifies, with the hint shown when it fails."""
+    """One thing a checker verifies, with the hint shown when it fails. ``inconclusive``: a timing
+    criterion missed on a busy machine, even after its retries (never a pass; the hint says why)."""
 
     name: str
     passed: bool
     detail: str = ""
     hint: str = ""
+    inconclusive: bool = False
+
+    @property
+    def tag(self) -> str:
+        return "pass" if self.passed else ("BUSY" if self.inconclusive else "FAIL")
 
 
 @dataclass
@@ -49,6 +55,18 @@ class CheckReport:
         self.criteria.append(Criterion(name, bool(passed), detail, hint))
         return bool(passed)
 
+    def add_timed(self, results: list[tuple[str, bool, str, str]], verdict) -> bool:
+        """Add the criteria of a timed scenario (see :func:`judge_timed_scenario`): as measured, except
+        that a failed one is inconclusive when ``verdict`` is (its hint then says why, in one line)."""
+        from course_helpers.core.verdict import INCONCLUSIVE
+
+        for name, passed, detail, hint in results:
+            if passed or verdict.outcome != INCONCLUSIVE:
+                self.add(name, passed, detail, hint)
+            else:
+                self.criteria.append(Criterion(name, False, detail, f"inconclusive: {verdict.why()}.", True))
+        return all(passed for _name, passed, _detail, _hint in results)
+
     def run(self, name: str, step: Callable[[], object], hint: str = "") -> object | None:
         """Run ``step``; an exception becomes a failed criterion with the error as detail."""
         try:
@@ -63,7 +81,7 @@ class CheckReport:
         lines = [f"{self.exercise}: {verdict} "
                  f"({sum(c.passed for c in self.criteria)}/{len(self.criteria)} criteria)"]
         for c in self.criteria:
-            line = f"  [{'pass' if c.passed else 'FAIL'}] {c.name}"
+            line = f"  [{c.tag}] {c.name}"
             if c.detail:
                 line += f" - {c.detail}"
             lines.append(line)
@@ -77,8 +95,8 @@ class CheckReport:
     def _repr_html_(self) -> str:
         rows = []
         for c in self.criteria:
-            colour = "#1a7f37" if c.passed else "#cf222e"
-            mark = "&#10004;" if c.passed else "&#10008;"
+            colour = "#1a7f37" if c.passed else ("#9a6700" if c.inconclusive else "#cf222e")
+            mark = "&#10004;" if c.passed else ("?" if c.inconclusive else "&#10008;")
             hint = (f"<br><small>Hint: {html.escape(c.hint)}</small>"
                     if c.hint and not c.passed else "")
             detail = f" <small>({html.escape(c.detail)})</small>" if c.detail else ""
@@ -169,3 +187,20 @@ def client_reaches(client, service) -> tuple[bool, str]:
         if compatible == QoSCompatibility.ERROR:
             return False, f"the {what} cannot flow: {reason}"
     return poll_until(client.service_is_ready, MATCH_TIMEOUT_S), ""
+
+
+def judge_timed_scenario(report: CheckReport, statement: str, scenario) -> bool:
+    """Run ``scenario()`` (it returns a list of ``(name, passed, detail, hint)``) whose criteria DDS or
+    the operating system times on the wall clock, and add them with the one timing verdict
+    (:func:`course_helpers.core.verdict.judge_timing`): on a busy machine a missed criterion is
+    measured again, and one still missed is reported as inconclusive with the load, never as a pass.
+    The scenario must set up its own state each time it runs. Returns True if every criterion passed.
+    """
+    from course_helpers.core.verdict import judge_timing
+
+    def missed(results) -> str:
+        names = [name for name, passed, _detail, _hint in results if not passed]
+        return "missed: " + "; ".join(names) if names else "every criterion met"
+
+    verdict, results = judge_timing(statement, scenario, lambda rs: all(r[1] for r in rs), show=missed)
+    return report.add_timed(results, verdict)

@@ -147,7 +147,7 @@ def _run_and_listen(report: CheckReport, rt, ws: Workspace, package: str, execut
         return
     try:
         try:
-            wait_for_process_node(child, node, timeout=15.0)
+            wait_for_process_node(child, node)
             appeared, detail = True, ""
         except (CourseError, WaitTimeout) as exc:  # it exited, or it runs without the node
             appeared = False

@@ -18,6 +18,8 @@ from course_helpers.core.graph_view import GraphView
 from course_helpers.core.validation import check_node_name
 from course_helpers.core.waiting import poll_until
 
+CHILD_HANG_S = 60.0  # s; bounds a hang only: a child starts and is discovered in 1-2 s idle, several
+# seconds beside a full test stage on two cores; a child that fails says so at once (its exit)
 ENTRY_SETTLE_S = 0.15  # s; a new node's graph entry unchanged this long counts as complete
 OLD_NODES_GONE_S = 3.0  # s; how long a re-spawn waits for the old process's nodes to leave the graph
 
@@ -37,7 +39,7 @@ class ChildNodes:
         self._ensure_running = ensure_running
 
     def spawn(self, name: str, target, params: dict | None = None, wait_for: str | None = None,
-              timeout: float = 15.0, env: dict | None = None) -> processes.ChildProcess:
+              timeout: float = CHILD_HANG_S, env: dict | None = None) -> processes.ChildProcess:
         """Run ``target`` in a child process: a function or Node subclass, or 'module:callable'.
 
         ``name`` labels the process; a child with the same label is stopped first. ``params`` are
@@ -65,7 +67,8 @@ class ChildNodes:
             self.wait_for_child_node(child, wait_for, max(0.5, timeout - (time.monotonic() - started)))
         return child
 
-    def wait_for_child_node(self, child: processes.ChildProcess, fqn: str, timeout: float = 15.0) -> None:
+    def wait_for_child_node(self, child: processes.ChildProcess, fqn: str,
+                            timeout: float = CHILD_HANG_S) -> None:
         """Wait until ``child``'s node ``fqn`` is in the graph with all its endpoints; fail at once if
         the process ends.
 

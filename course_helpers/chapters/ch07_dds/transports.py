@@ -20,6 +20,7 @@ from course_helpers.core.child_results import run_child_for_result
 from course_helpers.core.dds_config import udp_loopback_env
 from course_helpers.core.errors import CourseError
 from course_helpers.core.runtime import get_runtime
+from course_helpers.core.spawning import CHILD_HANG_S
 from course_helpers.core.units import format_bytes
 
 TRANSPORT_LABELS = {
@@ -93,7 +94,7 @@ class Ping(Node):
 
 
 def run_ping(sizes: list[int], round_trips: int = 10, with_pong: bool = False,
-             timeout_s: float = 15.0) -> None:
+             timeout_s: float = CHILD_HANG_S) -> None:
     """Child-process procedure: bounce messages of each size off a pong node.
 
     Args:

@@ -98,14 +98,16 @@ class SlowConsumer(Node):
 
 
 class QuietSpell:
-    """A schedule: speak for ``speak_s`` once started, stay silent for ``quiet_s``, then speak again.
+    """A schedule: speak for ``speak_s`` once started, stay silent for ``quiet_s``, speak again for
+    ``after_s``, and keep speaking.
 
-    :meth:`speaking` is asked on every tick; it reports ``quiet`` and ``resume`` over the channel
-    the first time each phase begins.
+    :meth:`speaking` is asked on every tick; it reports ``quiet``, ``resume`` and ``done`` over the
+    channel the first time each phase begins, so the kernel learns when the schedule's last phase
+    ended from the schedule itself, instead of sleeping through it.
     """
 
-    def __init__(self, speak_s: float, quiet_s: float):
-        self.speak_s, self.quiet_s = speak_s, quiet_s
+    def __init__(self, speak_s: float, quiet_s: float, after_s: float = 1.0):
+        self.speak_s, self.quiet_s, self.after_s = speak_s, quiet_s, after_s
         self.started_at: float | None = None  # time.monotonic()
         self.phase = "waiting"
 
@@ -121,10 +123,11 @@ class QuietSpell:
             return False
         elapsed = time.monotonic() - self.started_at
         phase = ("speaking" if elapsed < self.speak_s else
-                 "quiet" if elapsed < self.speak_s + self.quiet_s else "resumed")
+                 "quiet" if elapsed < self.speak_s + self.quiet_s else
+                 "resumed" if elapsed < self.speak_s + self.quiet_s + self.after_s else "done")
         if phase != self.phase:
             self.phase = phase
-            report("quiet" if phase == "quiet" else "resume")
+            report({"quiet": "quiet", "resumed": "resume", "done": "done"}[phase])
         return phase != "quiet"
 
 
@@ -135,9 +138,9 @@ class OdomSensor(Node):
     after ``speak_s`` seconds (a child-process target).
     """
 
-    def __init__(self, speak_s: float = 1.0, quiet_s: float = 1.6):
+    def __init__(self, speak_s: float = 1.0, quiet_s: float = 1.6, after_s: float = 1.5):
         super().__init__("odom_driver")
-        self.spell = QuietSpell(speak_s, quiet_s)
+        self.spell = QuietSpell(speak_s, quiet_s, after_s)
         self.publisher = self.create_publisher(Odometry, "/odom", qos_from_dict(ODOM_QOS))
         self.message = Odometry()
         self.message.header.frame_id = "odom"
@@ -155,9 +158,9 @@ class ScheduledHeartbeat(Node):
     """A heartbeat on /heartbeat with :data:`HEARTBEAT_QOS` that asserts its liveliness every
     :data:`HEARTBEAT_PERIOD_S`, and stops for ``quiet_s`` after ``speak_s`` (a child-process target)."""
 
-    def __init__(self, speak_s: float = 1.0, quiet_s: float = 1.5):
+    def __init__(self, speak_s: float = 1.0, quiet_s: float = 1.5, after_s: float = 1.0):
         super().__init__("heartbeat_driver")
-        self.spell = QuietSpell(speak_s, quiet_s)
+        self.spell = QuietSpell(speak_s, quiet_s, after_s)
         self.publisher = self.create_publisher(String, "/heartbeat", qos_from_dict(HEARTBEAT_QOS))
         self.timer = self.create_timer(HEARTBEAT_PERIOD_S, self.tick)  # period in seconds
 

@@ -36,9 +36,10 @@ from course_helpers.core.dds_config import udp_loopback_env
 from course_helpers.core.errors import CourseError
 from course_helpers.core.machine_load import LoadMeter
 from course_helpers.core.runtime import get_runtime
+from course_helpers.core.spawning import CHILD_HANG_S
 from course_helpers.core.waiting import poll_until
 
-MATCH_TIMEOUT_S = 15.0  # child start (Python + rclpy import) plus discovery
+MATCH_TIMEOUT_S = CHILD_HANG_S  # bounds a hang: child start (Python + rclpy import) plus discovery
 _IDLE_END_S = 0.5  # after the publisher is done, end when nothing arrived for this long
 # Reliable, once every sample is acknowledged: the rest is in this process's reader queue (or was
 # dropped from a shallow writer history); a busy executor may take a moment to hand it over.

@@ -14,6 +14,7 @@ from pathlib import Path
 from course_helpers.core import processes
 from course_helpers.core.errors import CourseError
 from course_helpers.core.processes import ChildProcess
+from course_helpers.core.spawning import CHILD_HANG_S
 
 PROCESS_GROUP = "package"  # the process layer's group for `ros2 run`-style processes
 STOP_GRACE_S = 3.0  # s; SIGINT, then SIGKILL after this long
@@ -66,7 +67,7 @@ def running_processes() -> dict[str, ChildProcess]:
     return processes.running(PROCESS_GROUP)
 
 
-def wait_for_process_node(child: ChildProcess, fqn: str, timeout: float = 15.0) -> None:
+def wait_for_process_node(child: ChildProcess, fqn: str, timeout: float = CHILD_HANG_S) -> None:
     """Wait until the node ``fqn`` shows up in this kernel's ROS graph; raise early if the process ends."""
     from course_helpers.core.runtime import get_runtime
 

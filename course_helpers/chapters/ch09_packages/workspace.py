@@ -40,6 +40,7 @@ from course_helpers.chapters.ch09_packages.executables import (
 from course_helpers.chapters.ch09_packages.package_files import ament_python_files, check_package_name
 from course_helpers.core.errors import CourseError
 from course_helpers.core.processes import ChildProcess
+from course_helpers.core.spawning import CHILD_HANG_S
 
 # Workspaces by label: creating a workspace with a label already in use removes the old one.
 _workspaces: dict[str, Workspace] = {}
@@ -163,7 +164,8 @@ class Workspace:
         return find_executable(package, executable, self.environment() if env is None else env)
 
     def run(self, package: str, executable: str, args: list[str] | tuple[str, ...] = (),
-            label: str | None = None, wait_for: str | None = None, timeout: float = 15.0) -> ChildProcess:
+            label: str | None = None, wait_for: str | None = None,
+            timeout: float = CHILD_HANG_S) -> ChildProcess:
         """Start ``EXECUTABLE`` of ``PACKAGE`` as its own process, like ``ros2 run PACKAGE EXECUTABLE``.
 
         The process gets the workspace's environment (and this kernel's ROS domain). A
