@@ -119,6 +119,17 @@ def judge_timing(statement: str, measure: Callable[[], T], holds: Callable[[T], 
     return Verdict(statement, INCONCLUSIVE, show(value), load, attempts), value
 
 
+def reusing(first: T, measure: Callable[[], T]) -> Callable[[], T]:
+    """A ``measure`` for :func:`claim_timing` that returns ``first`` (a measurement an earlier cell
+    made) the first time and measures anew only for a retry."""
+    pending = [first]
+
+    def once_then_measure() -> T:
+        return pending.pop() if pending else measure()
+
+    return once_then_measure
+
+
 def claim(statement: str, holds: object, measured: str = "") -> Verdict:
     """A notebook's claim that holds by construction: print its line (✔ or ✘, the statement and the
     measured values) and raise :class:`VerdictError` if it does not hold."""
