@@ -61,7 +61,8 @@ def test_channel_checker_rejects_resending_queueing_latching_and_lossy_choices(r
         "camera": QoSProfile(history=QoSHistoryPolicy.KEEP_ALL, reliability=RELIABLE),
         "lidar": QoSProfile(history=QoSHistoryPolicy.KEEP_ALL, reliability=RELIABLE,
                             durability=TRANSIENT_LOCAL),
-        "joint_states": QoSProfile(depth=10, reliability=BEST_EFFORT),
+        "joint_states": QoSProfile(history=QoSHistoryPolicy.KEEP_ALL, reliability=RELIABLE,
+                                   durability=TRANSIENT_LOCAL),
         "estop": QoSProfile(depth=1, reliability=BEST_EFFORT, durability=VOLATILE),
     }
     report = check_channel_qos(wrong, rt)
@@ -72,7 +73,8 @@ def test_channel_checker_rejects_resending_queueing_latching_and_lossy_choices(r
         "qos_profile_sensor_data",
         "lidar: a node that starts later gets no old scan",
         "lidar: only recent scans are queued (a depth of 10 at most)",
-        "joint_states: robot_state_publisher's RELIABLE subscription receives them",
+        "joint_states: a node that starts later gets no old state",
+        "joint_states: only recent states are queued (a depth of 10 at most)",
         "estop: a press lost on the way is sent again",
         "estop: a controller that starts after the button was pressed still gets it",
         "estop: a safety monitor requesting RELIABLE + TRANSIENT_LOCAL connects",
@@ -153,7 +155,7 @@ def test_mismatched_subscriber_checker_accepts_the_reference_solution(rt):
 def test_mismatched_subscriber_checker_rejects_the_starting_code_without_giving_the_fix(rt):
     report = check_mismatched_subscriber(StarterListener, rt)
     assert _failed(report) == ["its QoS is compatible with what the publisher offers",
-                               "its callback gets the commands (3 within 3 s)"], report.summary()
+                               "its callback gets the commands"], report.summary()
     compatible = report.criteria[1]
     assert "reliability" in compatible.detail and "durability" in compatible.detail
     for answer in ("best_effort", "volatile", "BEST_EFFORT", "VOLATILE"):  # what to write is not said
@@ -166,7 +168,7 @@ def test_mismatched_subscriber_checker_rejects_each_wrong_part(rt):
         NamedListener: "the node starts",
         TypoListener: "it subscribes to /robot_cmd",
         RenamedListener: "it keeps what it receives in self.received",
-        ForgetfulListener: "its callback gets the commands (3 within 3 s)",
+        ForgetfulListener: "its callback gets the commands",
         WholeMessageListener: "they are the controller's commands",
     }
     for wrong, criterion in expected.items():

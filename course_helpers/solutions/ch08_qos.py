@@ -25,10 +25,8 @@ def channel_qos() -> dict:
                              durability=QoSDurabilityPolicy.VOLATILE),
         # the sensor-data profile: best effort, volatile, the last 5 scans
         "lidar": qos_profile_sensor_data,
-        # robot_state_publisher subscribes reliable; only the current state matters
-        "joint_states": QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=10,
-                                   reliability=QoSReliabilityPolicy.RELIABLE,
-                                   durability=QoSDurabilityPolicy.VOLATILE),
+        # robot_state_publisher subscribes with the sensor-data profile; only the current state matters
+        "joint_states": qos_profile_sensor_data,
         # never lost, and kept for controllers that start later
         "estop": QoSProfile(history=QoSHistoryPolicy.KEEP_LAST, depth=1,
                             reliability=QoSReliabilityPolicy.RELIABLE,

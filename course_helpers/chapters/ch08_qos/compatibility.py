@@ -120,7 +120,7 @@ def _policy_of(status) -> str:
 
 def try_pair(rt, pub: QoSProfile, sub: QoSProfile, seconds: float = 1.0, topic: str = "qos_pair",
              msg_type=String, make_message: Callable | None = None,
-             published_before: int | None = None) -> PairResult:
+             published_before: int | None = None, until_all_stored: bool = False) -> PairResult:
     """Create a real publisher (profile ``pub``) and subscription (``sub``) on ``topic``; watch them.
 
     Args:
@@ -131,8 +131,10 @@ def try_pair(rt, pub: QoSProfile, sub: QoSProfile, seconds: float = 1.0, topic: 
         make_message: builds each message (default ``msg_type()``).
         published_before: if given, the publisher sends this many messages once, before the
             subscription exists, and then stays silent (the subscription joins late and is
-            watched for the whole ``seconds``). Otherwise it publishes every 50 ms and the
-            watch ends as soon as 3 messages arrived or both ends reported an incompatibility.
+            watched for the whole ``seconds``, or, with ``until_all_stored``, until every one of them
+            arrived). Otherwise it publishes every 50 ms and the watch ends as soon as 3 messages
+            arrived or both ends reported an incompatibility. A watch that ends early is no window:
+            ``seconds`` then only bounds a hang.
 
     Returns a :class:`PairResult`.
     """
@@ -157,7 +159,11 @@ def try_pair(rt, pub: QoSProfile, sub: QoSProfile, seconds: float = 1.0, topic: 
             incompatible_qos=lambda s: sub_events.append(_policy_of(s))))
 
     def settled() -> bool:
-        return published_before is None and (len(received) >= PAIR_ENOUGH or bool(pub_events and sub_events))
+        if pub_events and sub_events:
+            return True
+        if published_before is None:
+            return len(received) >= PAIR_ENOUGH
+        return until_all_stored and len(received) >= published_before
 
     try:
         poll_until(settled, seconds)
