@@ -6,15 +6,17 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 
 def burst_qos() -> QoSProfile:
-    """Exercise 08b: the QoS for a burst of 60 samples to a subscriber that handles one while two arrive.
+    """Exercise 08b: the QoS for a burst of 120 samples over a link that drops one datagram in ten, to a
+    subscriber that handles one sample while two arrive.
 
-    A queue that holds the whole burst loses nothing: the subscriber is slow, not gone. Reliable
-    makes the writer keep and resend what the reader has not acknowledged. The price is latency:
-    the last sample waits for the ones queued before it.
+    Reliable makes the writer keep and resend what the reader has not acknowledged: only that undoes
+    the link's losses. A queue that holds the whole burst loses nothing to the slow subscriber either,
+    and stays bounded. The price is latency: a repaired sample waits for the writer's heartbeat, and
+    every later one waits behind it and behind the samples queued before it.
     """
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
-        depth=60,  # the whole burst
+        depth=120,  # the whole burst
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.VOLATILE,
     )
