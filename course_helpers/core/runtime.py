@@ -2,12 +2,10 @@
 
 Every chapter starts with ``rt = get_runtime()``. The runtime
 
-* owns its own rclpy ``Context`` with signal handlers off, so the kernel's stop button
-  (SIGINT) interrupts the cell and never shuts ROS down;
-* spins one background executor thread (single-threaded by default, the fastest here;
-  chapter 02 opts into multi-threaded to teach callback groups);
-* keeps node names unique: adding a node whose name is taken destroys the old one first,
-  so re-running a cell never leaves duplicates;
+* owns its own rclpy ``Context`` with signal handlers off (the stop button never shuts ROS down);
+* spins one background executor thread (single-threaded by default; chapter 02 opts into
+  multi-threaded to teach callback groups);
+* keeps node names unique: a node whose name is taken is destroyed first (no duplicates on re-run);
 * waits for futures, conditions and messages from the notebook without spinning;
 * runs nodes in child processes through the process layer, and stops them with itself;
 * isolates each kernel in its own ROS domain with localhost-only discovery;
@@ -346,6 +344,14 @@ class CourseRuntime:
         task = self.executor.create_task(function, *args)
         self.executor.wake()
         return self.wait_for_future(task, timeout=timeout, what=getattr(function, "__name__", "task"))
+
+    def settle_callbacks(self, rounds: int = 2, timeout: float = 60.0) -> None:
+        """Wait until the executor ran every callback ready now, and those they made ready, ``rounds``
+        deep: a sentinel on its own queue (a task runs before the next wait), not a window. In one
+        context a message is in its reader once ``publish()`` returns, so a chain of this kernel's
+        nodes, one hop a round, has finished. ``timeout`` bounds a hang only."""
+        for _ in range(rounds):
+            self.call_in_executor(lambda: None, timeout=timeout)
 
     wait_for_future = staticmethod(wait_for_future)
 
