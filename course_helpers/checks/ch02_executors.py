@@ -13,6 +13,7 @@ CAMERA_PERIOD_S, CAMERA_WAIT_S = 0.2, 0.05
 PLANNER_PERIOD_S, PLANNER_BLOCK_S = 0.5, 0.3
 GIVEN_PERIODS_S = (HEARTBEAT_PERIOD_S, CAMERA_PERIOD_S, PLANNER_PERIOD_S)
 MAX_GAP_S = 0.15  # the exercise's watchdog: a heartbeat gap longer than this fails
+EXCLUSIVE = "the heartbeat and the planner share one mutually exclusive group: they can never overlap"
 PLANNER_GAP_S = 0.25  # a gap this long means the heartbeat waited for the 0.3 s planner
 SLEEP_SLACK_S = 0.002  # time.sleep(t) never returns before t; this covers the clock's rounding
 
@@ -41,20 +42,29 @@ class TimedCalls:
         return timed
 
 
-def _timed_robot(node_class, calls: dict[float, TimedCalls], periods: list[float]):
+def _timed_robot(node_class, calls: dict[float, TimedCalls], periods: list[float], groups: dict):
     """A factory that builds the student's node and times the callback of each of its timers,
-    keyed by the timer's period (s), which it appends to ``periods``. The callbacks themselves
-    are left as they are."""
+    keyed by the timer's period (s), which it appends to ``periods``, and notes each timer's callback
+    group in ``groups``. The callbacks themselves are left as they are."""
 
     def build():
         node = node_class()
         for timer in list(getattr(node, "timers", [])):
             period = round(timer.timer_period_ns / 1e9, 3)
             periods.append(period)
+            groups[period] = timer.callback_group
             timer.callback = calls.setdefault(period, TimedCalls()).wrap(timer.callback)
         return node
 
     return build
+
+
+def _share_an_exclusive_group(first, second) -> bool:
+    """True if two callbacks share one MutuallyExclusiveCallbackGroup: then they never run at once,
+    whatever the threads (rclpy's executor asks the group before it starts a callback)."""
+    from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+
+    return first is not None and first is second and isinstance(first, MutuallyExclusiveCallbackGroup)
 
 
 def check_responsive_robot(node_class, duration_s: float = 2.0, threads: int = 3) -> CheckReport:
@@ -91,10 +101,13 @@ def check_responsive_robot(node_class, duration_s: float = 2.0, threads: int = 3
 
 
 def _robot_run(node_class, duration_s: float, threads: int) -> list:
-    """One run of the robot in a multi-threaded executor, judged: (name, passed, detail, hint) each."""
+    """One run of the robot in a multi-threaded executor, judged: (name, passed, detail, hint) each, and
+    True fifth where the callback groups alone decide the outcome."""
     calls: dict[float, TimedCalls] = {}
     periods: list[float] = []
-    spin_for(_timed_robot(node_class, calls, periods), duration_s, "multi", threads=threads)
+    groups: dict[float, object] = {}
+    spin_for(_timed_robot(node_class, calls, periods, groups), duration_s, "multi", threads=threads)
+    exclusive = _share_an_exclusive_group(groups.get(HEARTBEAT_PERIOD_S), groups.get(PLANNER_PERIOD_S))
     periods.sort()
     heartbeat = calls.get(HEARTBEAT_PERIOD_S, TimedCalls())
     planner = calls.get(PLANNER_PERIOD_S, TimedCalls())
@@ -110,13 +123,13 @@ def _robot_run(node_class, duration_s: float, threads: int) -> list:
         ("its timers are the given ones: every 0.1 s, 0.2 s and 0.5 s", periods == sorted(GIVEN_PERIODS_S),
          "" if periods == sorted(GIVEN_PERIODS_S) else f"found timers every {periods} s",
          "Compare the timers with the exercise as given: their periods stay as they are."),
-        ("the heartbeat kept beating while the planner blocked", beside > 0,
-         "" if beside else "no beat started while the planner ran",
+        ("the heartbeat kept beating while the planner blocked", beside > 0 and not exclusive,
+         EXCLUSIVE if exclusive else ("" if beside else "no beat started while the planner ran"),
          "Two callbacks run at the same time only when nothing forbids it: section 8 shows what decides "
-         "that, beside the number of threads."),
-        ("no gap between heartbeats above 0.15 s", not gap, gap,
+         "that, beside the number of threads.", exclusive),
+        ("no gap between heartbeats above 0.15 s", not gap and not exclusive, EXCLUSIVE if exclusive else gap,
          "Section 8 measured a control loop that kept ticking beside a blocking planner in one of three "
-         "configurations: compare that node's constructor with yours."),
+         "configurations: compare that node's constructor with yours.", exclusive),
         _ran_as_given("camera", calls.get(CAMERA_PERIOD_S), CAMERA_WAIT_S, 5),
         _ran_as_given("planner", calls.get(PLANNER_PERIOD_S), PLANNER_BLOCK_S, 2),
     ]
