@@ -6,11 +6,15 @@ executor, call its services. Wrong solutions are the mistakes students make.
 
 from __future__ import annotations
 
+import pytest
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 
 from course_helpers.checks.ch02_executors import check_responsive_robot
 from course_helpers.notebook.solution import solution_source
 from course_helpers.solutions.ch02_executors import Robot
+
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
 
 # ---------------------------------------------------------------------- 02: responsive robot
 # One plausible wrong solution per criterion of check_responsive_robot; each test sees its criterion fail.

@@ -33,6 +33,9 @@ from course_helpers.core.node_hook import hook_installed
 from course_helpers.nodes import Listener, Talker
 from course_helpers.solutions.ch05_actions import NavigationServer
 
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
+
 
 # ---------------------------------------------------------------------- chapter 04: services
 class BlockingCaller(Node):

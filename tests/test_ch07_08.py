@@ -32,6 +32,9 @@ from course_helpers.chapters import ch08_qos as qos
 from course_helpers.chapters.ch07_dds.server import SERVER_GROUP, SERVER_LABEL, udp_port_bound
 from course_helpers.core import processes
 
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
+
 
 # ---------------------------------------------------------------------- chapter 07
 def test_communication_models_route_and_count():

@@ -17,6 +17,9 @@ from course_helpers.chapters import ch07_dds as dds
 from course_helpers.chapters.ch07_dds.discovery import DiscoveryTiming
 from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S
 
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
+
 NOTEBOOK = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                         "notebooks", "07_dds_and_discovery.ipynb")
 

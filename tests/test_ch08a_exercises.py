@@ -25,6 +25,9 @@ from course_helpers.checks.ch08_qos_events import check_deadline_watchdog, check
 from course_helpers.notebook.solution import solution_source
 from course_helpers.solutions import ch08_qos as reference
 
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
+
 CREATED = "the node can be created"
 BEST_EFFORT, RELIABLE = QoSReliabilityPolicy.BEST_EFFORT, QoSReliabilityPolicy.RELIABLE
 VOLATILE, TRANSIENT_LOCAL = QoSDurabilityPolicy.VOLATILE, QoSDurabilityPolicy.TRANSIENT_LOCAL

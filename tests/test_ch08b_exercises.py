@@ -22,6 +22,9 @@ from course_helpers.chapters.ch08b_lab import ExperimentConfig, link_unavailable
 from course_helpers.checks.ch08b_lab import BOUNDED, BURST_SAMPLES, LOSS_TARGET, burst_config, check_burst_qos
 from course_helpers.solutions.ch08b_lab import burst_qos
 
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
+
 PROFILE = "the QoS is a profile the lab can run"
 RAN = "the experiment ran"
 LINK = "the lossy link is available"

@@ -26,6 +26,9 @@ from course_helpers.chapters.ch08b_lab import (
 )
 from course_helpers.core.waiting import poll_until
 
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
+
 
 # ---------------------------------------------------------------------- configuration
 @pytest.mark.parametrize("changes, words", [

@@ -21,6 +21,9 @@ import pytest
 from course_helpers.chapters.ch08b_lab import preset, qos_lab
 from tests.kernel_session import KernelSession
 
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = pytest.mark.timing
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PRESET = "best-effort vs reliable under load"
 # Chapter 03's cells that start nodes: the thermometer and its monitor, two sensors in child

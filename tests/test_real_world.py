@@ -35,7 +35,8 @@ from .shared_install import closed_to_others, ensure_user, shared_venv
 
 REPO = Path(__file__).resolve().parent.parent
 USER = "course_netns"
-pytestmark = pytest.mark.timeout(240)
+# measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
+pytestmark = [pytest.mark.timing, pytest.mark.timeout(240)]
 
 needs_namespaces = pytest.mark.skipif(shutil.which("unshare") is None or shutil.which("nft") is None,
                                       reason="unshare (util-linux) or nft (nftables) is missing")
