@@ -6,14 +6,19 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.course-installed
 PORT   ?= 8888
 WORK   ?= $(HOME)/ros2-course-work
-# Parallel test workers. The suite mostly waits (discovery, timers, child processes), so five
-# workers keep a 2-core machine busy; each worker has its own ROS domain. `make test JOBS=1` runs
-# one at a time.
+# Parallel test workers, by kind of test. Logic tests (every test not marked 'timing') mostly wait
+# for discovery and child processes, and judge nothing by the clock, so JOBS workers keep a 2-core
+# machine busy; each worker has its own ROS domain. Tests marked 'timing' measure time (rates,
+# latencies, DDS's deadline and lease events) and judge it with the one timing verdict, which measures
+# again on a busy machine: they run in a stage of their own with TIMING_JOBS workers, so that they do
+# not starve each other (README: how these numbers were measured). `make test JOBS=1` runs one at a time.
 # Files are dealt out whole (--dist loadfile: a notebook's cells share one kernel, a test file's
 # tests their module fixtures), longest first by the seconds in tests/durations.json
 # (conftest.py; --no-loadscope-reorder keeps that order instead of xdist's count of tests).
 JOBS   ?= 5
+TIMING_JOBS ?= $(if $(filter 1,$(JOBS)),1,2)
 XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
+TIMING_XDIST := -n $(TIMING_JOBS) --dist loadfile --no-loadscope-reorder
 # The notebooks get one worker more: the QoS lab alone runs for most of that stage, and a sixth
 # worker takes the other eleven notebooks around it sooner (150 s against 154 s with five).
 # `JOBS=1` still runs one at a time.
@@ -57,11 +62,13 @@ lab: setup
 # -rfEs: every failure, error and skipped test is listed at the end, a skip with its reason (what is
 # missing and how to get it).
 test: setup
-	$(PY) -m pytest $(UNIT) -q -rfEs $(XDIST)
+	$(PY) -m pytest $(UNIT) -m "not timing" -q -rfEs $(XDIST)
+	$(PY) -m pytest $(UNIT) -m timing -q -rfEs $(TIMING_XDIST)
 	$(PY) -m pytest $(NBVAL) $(NB_XDIST) notebooks -q -rfEs
 
 unit: setup
-	$(PY) -m pytest $(UNIT) -q -rfEs $(XDIST)
+	$(PY) -m pytest $(UNIT) -m "not timing" -q -rfEs $(XDIST)
+	$(PY) -m pytest $(UNIT) -m timing -q -rfEs $(TIMING_XDIST)
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
@@ -69,7 +76,8 @@ notebooks: setup
 
 # Measure both stages and record each file's seconds in tests/durations.json (the order above).
 durations: setup
-	$(PY) -m pytest $(UNIT) -q -rfEs $(XDIST) --record-durations
+	$(PY) -m pytest $(UNIT) -m "not timing" -q -rfEs $(XDIST) --record-durations
+	$(PY) -m pytest $(UNIT) -m timing -q -rfEs $(TIMING_XDIST) --record-durations
 	$(PY) -m pytest $(NBVAL) $(NB_XDIST) notebooks -q -rfEs --record-durations
 
 lint: setup
