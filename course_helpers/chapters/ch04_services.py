@@ -23,12 +23,13 @@ import time
 from dataclasses import dataclass, field
 
 from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Int64
 
 from course_helpers.core.dds_config import init_context
 from course_helpers.core.errors import CourseError, WaitTimeout
-from course_helpers.core.executors import SpinThread, plain_executor
+from course_helpers.core.executors import SpinThread, plain_executor, queued_tasks
 from course_helpers.core.node_hook import build_nodes
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_namespace
@@ -160,8 +161,7 @@ class IsolatedExecutor:
         released = 0
         for node in self.nodes:
             for client in list(node.clients):
-                pending = getattr(client, "_pending_requests", {})
-                for future in list(pending.values()):
+                for future in list(client._pending_requests.values()):  # private: test_rclpy_private_api
                     future.cancel()
                     released += 1
         return released
@@ -173,9 +173,8 @@ class IsolatedExecutor:
         self._closing = True
         self._spinner.stop(timeout=0)  # ask the loop to end; a callback may still be stuck in a call
         poll_until(self._released_and_idle, TEARDOWN_TIMEOUT_S, RELEASE_PERIOD_S)
-        pool = getattr(self.executor, "_executor", None)  # the MultiThreadedExecutor's worker threads
-        if pool is not None:
-            pool.shutdown(wait=not self._callbacks_running())
+        if isinstance(self.executor, MultiThreadedExecutor):  # its worker threads: private, as above
+            self.executor._executor.shutdown(wait=not self._callbacks_running())
         for node in self.nodes:
             self.executor.remove_node(node)
         self.executor.shutdown(timeout_sec=1.0)
@@ -199,7 +198,8 @@ class IsolatedExecutor:
 
     def _callbacks_running(self) -> bool:
         """True while a callback of the multi-threaded executor's workers has not finished."""
-        return any(not task.done() for task in list(getattr(self.executor, "_futures", []) or []))
+        return isinstance(self.executor, MultiThreadedExecutor) and any(
+            not future.done() for future in list(self.executor._futures))  # private, as above
 
     def _collect_task_errors(self) -> None:
         """Read the errors of tasks left behind, so rclpy does not print them later at random.
@@ -208,11 +208,8 @@ class IsolatedExecutor:
         asked for; rclpy prints such errors when the task is garbage-collected, which
         would land in whatever cell runs then.
         """
-        leftovers = list(getattr(self.executor, "_tasks", []) or []) + list(
-            getattr(self.executor, "_futures", []) or [])
-        for item in leftovers:
-            task = item[0] if isinstance(item, tuple) else item
-            if hasattr(task, "exception") and task.done() and task.exception() is not None:
+        for task in queued_tasks(self.executor):
+            if task.done() and task.exception() is not None:
                 self.errors.append(f"{type(task.exception()).__name__}: {task.exception()}")
 
 

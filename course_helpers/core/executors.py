@@ -2,11 +2,17 @@
 
 ``SpinThread`` runs :func:`spin_until_stopped` in a background thread: the runtime's
 executor, the ``/rosout`` reader of the node consoles, the isolated executors of
-chapters 02 and 04 and the child processes all use it. The loop waits without a
-timeout (a timeout would cost a new rcl timer per wait); whoever stops it wakes the
-executor, which ends the wait. A callback's exception never ends the thread: it is
-handed to ``on_error``. A context shut down from outside ends the loop quietly (the runtime
-notices at its next use and heals).
+chapters 02 and 04 and the child processes all use it. The loop is rclpy's public
+``spin_once_until_future_complete`` with a future that stopping completes: the wait has no
+timeout (a timeout would cost a new rcl timer per wait), and stopping wakes it.
+
+The future stays the same from turn to turn, because rclpy hands out one wait's callbacks over
+several turns only while the arguments stay the same (a new future each turn would resume a
+waiting coroutine for ever without waiting for new work). rclpy's own method adds a done callback
+to that future every turn, so a plain executor's future is replaced every :data:`RENEW_TURNS`
+turns; the course's executors (:class:`WakeOnce`) add theirs once.
+A callback's exception never ends the thread: it is handed to ``on_error``. A context shut down
+from outside ends the loop quietly (the runtime notices at its next use and heals).
 """
 
 from __future__ import annotations
@@ -23,14 +29,64 @@ from rclpy.executors import (
     SingleThreadedExecutor,
     TimeoutException,
 )
+from rclpy.task import Future
 
 from course_helpers.core.waiting import changes
 
 ErrorHandler = Callable[[BaseException], None]
+RENEW_TURNS = 10_000  # a plain executor's stop future collects one done callback per turn: renewed this often
 
 
-def spin_until_stopped(executor, stop_requested: Callable[[], bool], on_error: ErrorHandler) -> None:
-    """Spin ``executor`` in this thread until ``stop_requested()`` or its context shuts down.
+class StopSignal:
+    """A spin loop's stop request, as the future the loop spins with: :meth:`set` completes it (the
+    caller then wakes the executor)."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._future = Future()
+        self._turns = 0
+
+    def is_set(self) -> bool:
+        return self._future.done()
+
+    def future(self, renew: bool) -> Future:
+        """The future for the loop's next turn: the same one, or with ``renew`` a fresh one every
+        :data:`RENEW_TURNS` turns (done already if a stop was asked for meanwhile)."""
+        with self._lock:
+            self._turns += 1
+            if renew and self._turns >= RENEW_TURNS and not self._future.done():
+                self._future, self._turns = Future(), 0
+            return self._future
+
+    def set(self) -> None:
+        with self._lock:
+            if not self._future.done():
+                self._future.set_result(None)
+
+
+class WakeOnce:
+    """Executor mix-in: rclpy's public ``spin_once_until_future_complete``, written with rclpy's public
+    ``wait_for_ready_callbacks``, that asks the future to wake the executor once, not every turn.
+    :meth:`run_handler` runs what the wait handed out (a subclass routes it)."""
+
+    def spin_once_until_future_complete(self, future, timeout_sec=None) -> None:
+        if getattr(self, "_wakes_with", None) is not future:
+            future.add_done_callback(lambda _done: self.wake())
+            self._wakes_with = future
+        try:
+            handler, _entity, node = self.wait_for_ready_callbacks(timeout_sec, None, future.done)
+        except (ShutdownException, TimeoutException, ConditionReachedException):
+            return
+        self.run_handler(handler, node)
+
+    def run_handler(self, handler, node) -> None:
+        handler()
+        if handler.exception() is not None:
+            raise handler.exception()
+
+
+def spin_until_stopped(executor, stop: StopSignal, on_error: ErrorHandler) -> None:
+    """Spin ``executor`` in this thread until ``stop`` is set or its context shuts down.
 
     A shutdown is not an error: neither the executor's own nor one from outside (rclpy raises
     ``ExternalShutdownException`` from its wait then), so it never reaches ``on_error``.
@@ -40,9 +96,10 @@ def spin_until_stopped(executor, stop_requested: Callable[[], bool], on_error: E
     runs the callback in its pool after this; such a wait sees it at its next periodic look.)
     """
     context = executor.context
-    while not stop_requested() and context.ok():
+    renew = not isinstance(executor, WakeOnce)
+    while not stop.is_set() and context.ok():
         try:
-            executor._spin_once_impl(None, stop_requested)
+            executor.spin_once_until_future_complete(stop.future(renew))
         except (ShutdownException, ExternalShutdownException, ConditionReachedException):
             continue  # the loop condition decides
         except Exception as exc:
@@ -56,7 +113,7 @@ class SpinThread:
     def __init__(self, executor, name: str, on_error: ErrorHandler,
                  on_exit: Callable[[], None] | None = None):
         self.executor = executor
-        self._stop = threading.Event()
+        self._stop = StopSignal()
         self._on_error = on_error
         self._on_exit = on_exit
         self.thread = threading.Thread(target=self._run, name=name, daemon=True)
@@ -67,7 +124,7 @@ class SpinThread:
 
     def _run(self) -> None:
         try:
-            spin_until_stopped(self.executor, self._stop.is_set, self._on_error)
+            spin_until_stopped(self.executor, self._stop, self._on_error)
         finally:
             if self._on_exit is not None:
                 self._on_exit()
@@ -79,21 +136,20 @@ class SpinThread:
     def stop(self, timeout: float = 10.0) -> bool:
         """Ask the loop to end, wake the executor and join; True if the thread ended."""
         self._stop.set()
-        try:
+        with contextlib.suppress(Exception):  # the context is already shut down: the loop ends by itself
             self.executor.wake()
-        except Exception:  # the context is already shut down: the loop ends by itself
-            pass
         if self.thread is not threading.current_thread() and self.thread.ident is not None:
             self.thread.join(timeout)
         return not self.thread.is_alive()
 
 
-class RoutedCallbacks:
+class RoutedCallbacks(WakeOnce):
     """Executor mix-in: route each callback's output to its node's console; report errors.
 
     A plain rclpy executor re-raises a callback's exception out of ``spin()``, which
     would end the background thread; here the traceback goes to the node's console
-    (through ``router``) and the other nodes keep running.
+    (through ``router``) and the other nodes keep running. ``wait_for_ready_callbacks`` says which
+    node a callback belongs to.
     """
 
     def _setup_routing(self, console_of_node: Callable, router, on_callback_error: Callable):
@@ -102,11 +158,7 @@ class RoutedCallbacks:
         self._on_callback_error = on_callback_error
         self._current_console = None
 
-    def _spin_once_impl(self, timeout_sec=None, wait_condition=lambda: False):
-        try:
-            handler, _entity, node = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)
-        except (ShutdownException, TimeoutException, ConditionReachedException):
-            return
+    def run_handler(self, handler, node) -> None:
         target = self._console_of_node(node)
         if target is not self._current_console:
             self._router.enter(target)
@@ -116,6 +168,10 @@ class RoutedCallbacks:
         if exc is not None:
             where = node.get_fully_qualified_name() if node is not None else "a task"
             self._on_callback_error(target, where, exc)
+
+
+class QuietSingleThreadedExecutor(WakeOnce, SingleThreadedExecutor):
+    """A single-threaded executor for a long-lived thread of the runtime's own (the /rosout reader)."""
 
 
 class CourseSingleThreadedExecutor(RoutedCallbacks, SingleThreadedExecutor):
@@ -133,9 +189,9 @@ class CourseMultiThreadedExecutor(MultiThreadedExecutor):
         super().__init__(num_threads=num_threads, context=context)
         self._on_callback_error = on_callback_error
 
-    def _spin_once_impl(self, timeout_sec=None, wait_condition=lambda: False):
+    def spin_once_until_future_complete(self, future, timeout_sec=None) -> None:
         try:
-            super()._spin_once_impl(timeout_sec, wait_condition)
+            super().spin_once_until_future_complete(future, timeout_sec)
         except (ShutdownException, TimeoutException, ConditionReachedException):
             return
         except Exception as exc:  # raised from a finished callback's future
@@ -153,14 +209,29 @@ def finish_pending_callbacks(executor) -> None:
     """Let callbacks already handed to a multi-threaded executor's pool finish before destruction.
 
     rclpy's ``MultiThreadedExecutor.shutdown`` does not wait for its thread pool; a callback
-    still queued there would run after its node is destroyed and fail.
+    still queued there would run after its node is destroyed and fail. Its pool and its futures are
+    private (``_executor``, ``_futures``: tests/test_rclpy_private_api.py); a rename fails loudly here.
     """
-    pool = getattr(executor, "_executor", None)
-    if pool is not None:
-        pool.shutdown(wait=True)
-    for task in getattr(executor, "_futures", []):
+    if not isinstance(executor, MultiThreadedExecutor):
+        return
+    executor._executor.shutdown(wait=True)
+    for task in list(executor._futures):
         if task.done():
             task.exception()  # mark any error as seen
+
+
+def queued_tasks(executor) -> list:
+    """The tasks an executor holds (its callbacks in progress and the coroutines it was given), as
+    ``Task`` objects. rclpy 7.1 keeps them in the private ``Executor._tasks`` as (task, entity, node);
+    newer releases split it into ``_pending_tasks`` and ``_ready_tasks``. A rename fails loudly with
+    what to adapt (tests/test_rclpy_private_api.py checks the pinned release)."""
+    if not hasattr(executor, "_tasks"):
+        raise AttributeError("rclpy's Executor has no _tasks any more (newer releases: _pending_tasks, "
+                             "_ready_tasks): adapt course_helpers.core.executors.queued_tasks")
+    tasks = [item[0] if isinstance(item, tuple) else item for item in list(executor._tasks)]
+    if isinstance(executor, MultiThreadedExecutor):
+        tasks += list(executor._futures)
+    return tasks
 
 
 @contextlib.contextmanager

@@ -46,20 +46,28 @@ class GraphView:
         except (OSError, AttributeError):
             self._watcher = None
         self._lock = threading.Lock()
-        self._cached_version: int | None = None
+        self._cached_version: tuple | None = None
         self._cache: dict = {}
+        self._local_changes = 0  # this process's own changes, counted as they happen (see changed())
 
     @property
     def wait_period(self) -> float:
         """How often a wait for something in the graph must look besides the graph's change events."""
         return WATCHED_PERIOD_S if self._watcher is not None and self._watcher.alive else UNNOTIFIED_PERIOD_S
 
+    def changed(self) -> None:
+        """This process changed the graph (a node added or destroyed): answers kept so far are stale at
+        once. The watcher hears of it too, but from another thread and a moment later: without this, a
+        query right after ``rt.add()`` could get the answer from before."""
+        with self._lock:
+            self._local_changes += 1
+
     def _cached(self, key, compute):
         """``compute()``, kept until the graph changes or for :data:`WATCHED_PERIOD_S` (not kept
         without a watcher)."""
-        version = self._watcher.version if self._watcher is not None and self._watcher.alive else None
-        if version is None:
+        if self._watcher is None or not self._watcher.alive:
             return compute()
+        version = (self._watcher.version, self._local_changes)
         now = time.monotonic()
         with self._lock:
             if self._cached_version != version:

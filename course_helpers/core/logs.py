@@ -10,11 +10,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from course_helpers.core.executors import SpinThread
+from course_helpers.core.executors import QuietSingleThreadedExecutor, SpinThread
 from course_helpers.core.node_hook import outside_builds
 
 LOG_NODE = "_course_logs"  # hidden (leading underscore), like ros2cli's daemon nodes
@@ -31,7 +30,7 @@ class RosoutReader:
         qos = QoSProfile(depth=100, reliability=QoSReliabilityPolicy.RELIABLE,
                          durability=QoSDurabilityPolicy.VOLATILE)
         self.node.create_subscription(Log, "/rosout", on_log, qos)
-        self.executor = SingleThreadedExecutor(context=context)
+        self.executor = QuietSingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.spinner = SpinThread(self.executor, "ros-logs", on_error).start()
 

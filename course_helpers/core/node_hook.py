@@ -119,14 +119,14 @@ def destroy_fully(node: Node) -> None:
     leaves it: the node would stay in the graph until Python's garbage collector freed the object.
     """
     from rclpy.action import ActionClient, ActionServer
+    from rclpy.lifecycle import LifecycleNodeMixin
 
     node.destroy_node()
     for waitable in list(node.waitables):
         if isinstance(waitable, (ActionServer, ActionClient)):
             waitable.destroy()
-    state_machine = getattr(node, "_state_machine", None)  # rclpy.lifecycle.LifecycleNodeMixin
-    if state_machine is not None:
-        state_machine.destroy_when_not_in_use()
+    if isinstance(node, LifecycleNodeMixin):  # private: tests/test_rclpy_private_api.py
+        node._state_machine.destroy_when_not_in_use()
 
 
 def bare_node(context, name: str):

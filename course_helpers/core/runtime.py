@@ -20,6 +20,7 @@ shuts this context down (:mod:`course_helpers.notebook.interrupts`).
 from __future__ import annotations
 
 import atexit
+import contextlib
 import functools
 import os
 import threading
@@ -201,7 +202,9 @@ class CourseRuntime:
         nodes are not spun (see :meth:`add`); a constructor that fails leaves nothing behind.
         """
         self._ensure_running()
-        return build_nodes(self.context, factory, *args, on_name=self._free_name, **kwargs)
+        built = build_nodes(self.context, factory, *args, on_name=self._free_name, **kwargs)
+        self._graph_changed()
+        return built
 
     def add(self, node_or_factory, *args, console: bool | None = None, **kwargs) -> Node:
         """Spin a node in the background and return it.
@@ -292,6 +295,10 @@ class CourseRuntime:
             del self._nodes[fqn]
         self._destroy(old)
 
+    def _graph_changed(self) -> None:
+        if self._graph is not None:
+            self._graph.changed()
+
     def _destroy(self, node: Node) -> None:
         """Remove a node from the executor and destroy it in the executor's own thread."""
         def destroy():
@@ -305,6 +312,7 @@ class CourseRuntime:
             self.call_in_executor(destroy, timeout=5.0)
         else:
             _quietly(destroy)
+        self._graph_changed()
 
     def _console_of_node(self, node):
         return self._node_consoles.get(id(node)) if node is not None else None
@@ -347,9 +355,8 @@ class CourseRuntime:
 
     def settle_callbacks(self, rounds: int = 2, timeout: float = 60.0) -> None:
         """Wait until the executor ran every callback ready now, and those they made ready, ``rounds``
-        deep: a sentinel on its own queue (a task runs before the next wait), not a window. In one
-        context a message is in its reader once ``publish()`` returns, so a chain of this kernel's
-        nodes, one hop a round, has finished. ``timeout`` bounds a hang only."""
+        deep: a sentinel on its own queue (a task runs before its next wait), not a window (a chain
+        of this kernel's nodes, one hop a round, has finished). ``timeout`` bounds a hang only."""
         for _ in range(rounds):
             self.call_in_executor(lambda: None, timeout=timeout)
 
@@ -443,8 +450,7 @@ class CourseRuntime:
         return status_of(self)
 
     def show_status(self) -> None:
-        """Print :meth:`status` as an aligned table."""
-        print(status_table(self.status()))
+        print(status_table(self.status()))  # status() as an aligned table
 
     def _record_error(self, console, where: str, exc: BaseException) -> None:
         """A node's callback raised: its traceback goes to the node's console (or the cell's output)."""
@@ -465,10 +471,8 @@ def _check_executor(kind) -> None:
 
 def _quietly(function: Callable, *args, **kwargs) -> None:
     """Run a clean-up step whose failure means there is nothing left to clean (a dead context)."""
-    try:
+    with contextlib.suppress(Exception):
         function(*args, **kwargs)
-    except Exception:
-        pass
 
 
 # ---------------------------------------------------------------------- module API
