@@ -81,15 +81,16 @@ class Recording:
         for name, types in self.node.get_topic_names_and_types():
             if name in self.topics or not self._wanted(name) or len(types) != 1:
                 continue
-            offers = [info.qos_profile for info in self.node.get_publishers_info_by_topic(name)]
-            if not offers:
+            publishers = self.node.get_publishers_info_by_topic(name)
+            if not publishers:
                 continue  # only subscribers so far: rosbag2 waits for a publisher to learn its QoS
-            self._subscribe(name, types[0], offers)
+            self._subscribe(name, types[0], [info.qos_profile for info in publishers],
+                            type_hash_of(publishers))
 
-    def _subscribe(self, name: str, type_name: str, offers: list) -> None:
+    def _subscribe(self, name: str, type_name: str, offers: list, type_hash: str) -> None:
         from course_helpers.core.validation import resolve_interface
 
-        self._writer.add_topic(name, type_name, [to_bag_qos(p) for p in offers])
+        self._writer.add_topic(name, type_name, [to_bag_qos(p) for p in offers], type_hash)
         writer, clock, sim = self._writer, self.node.get_clock(), self.use_sim_time
 
         def on_message(data: bytes, info: dict) -> None:
@@ -158,6 +159,13 @@ class Recording:
 
     def __repr__(self) -> str:
         return f"<Recording of {self.path.name!r}>"
+
+
+def type_hash_of(publishers) -> str:
+    """The RIHS01 type hash the publishers announce, as rosbag2 writes it ('' if they disagree)."""
+    hashes = {f"RIHS{p.topic_type_hash.version:02d}_{bytes(p.topic_type_hash.value).hex()}"
+              for p in publishers if p.topic_type_hash.version == 1}
+    return hashes.pop() if len(hashes) == 1 else ""
 
 
 def record(rt, output: str | Path, topics=(), all_topics: bool = False, regex: str | None = None,

@@ -97,9 +97,11 @@ class BagWriter:
             self._thread.join()
             raise CourseError(f"cannot write the bag '{self.path}': {self._error}")
 
-    def add_topic(self, name: str, type_name: str, offered: list[Qos]) -> None:
-        """Declare a topic before its first message (its definition is looked up now)."""
+    def add_topic(self, name: str, type_name: str, offered: list[Qos], type_hash: str = "") -> None:
+        """Declare a topic before its first message (its definition is looked up now). ``type_hash``:
+        the RIHS01 hash the publishers announced (rosbag2 stores theirs), else the definition's."""
         text, rihs01 = types.definition(type_name)
+        rihs01 = type_hash or rihs01
         with self._lock:
             if name in self._topics:
                 return
