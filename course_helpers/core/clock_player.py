@@ -32,6 +32,7 @@ CLOCK_TOPIC = "/clock"
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)  # rclcpp::ClockQoS
 DEFAULT_PUBLISH_HZ = 40.0  # rosbag2 play --clock without a value
 MAX_RATE = 1000.0
+_players: dict[str, ClockPlayer] = {}  # by node name: a new player replaces the old one (re-run safe)
 
 
 def _check_rate(rate: float) -> float:
@@ -46,6 +47,8 @@ class ClockPlayer:
 
     ``now_ns`` / ``now_s``, ``pause()``, ``resume()``, ``paused``, ``set_rate(r)``, ``step(s)``
     (forward by ``s`` seconds at once), ``jump(to_s)`` (anywhere, backwards too), ``close()``.
+    A new player with the ``name`` of one that still runs closes that one first, so running a cell
+    again never leaves two clocks publishing.
     """
 
     def __init__(self, rt, start_s: float | None = None, rate: float = 1.0,
@@ -59,7 +62,10 @@ class ClockPlayer:
         self._paused = False
         self._closed = False
         self.rt = rt
+        self.name = name
         self.node = self._publisher = self._timer = None
+        if _players.get(name) is not None:
+            _players.pop(name).close()
         if publish_hz is not None:
             from rosgraph_msgs.msg import Clock as ClockMessage
 
@@ -69,6 +75,7 @@ class ClockPlayer:
             self._timer = self.node.create_timer(1.0 / publish_hz, self.publish,
                                                  clock=Clock(clock_type=ClockType.STEADY_TIME))
             rt.executor.add_node(self.node)
+            _players[name] = self
 
     # ------------------------------------------------------------------ the time
     @property
@@ -158,6 +165,8 @@ class ClockPlayer:
                 return
             self._closed = True
             self._changed.notify_all()
+        if _players.get(self.name) is self:
+            del _players[self.name]
         if self.node is not None:
             node = self.node
 
