@@ -16,6 +16,8 @@ from collections import deque
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
+from course_helpers.core.channel import report
+
 PERIOD_S = 0.05  # s between two measurements (20 Hz)
 LATENCY_S = (0.005, 0.040)  # s from measuring to publishing, drawn per message
 DROPOUT_S = (3.0, 4.2)  # s after the start: no odometry at all (the cable is loose)
@@ -51,6 +53,7 @@ class OdometrySource(Node):
         t = (now - self.started).nanoseconds / 1e9
         if t > RUN_S:
             self.measure_timer.cancel()
+            report("done")  # to the kernel, over the process channel
             return
         if DROPOUT_S[0] <= t < DROPOUT_S[1]:
             return
@@ -77,7 +80,7 @@ def record_odometry(rt, output: str, overwrite: bool = False):
     recording = bags.record(rt, output, ["/odom"], overwrite=overwrite)
     child = rt.spawn("wheel_odometry", OdometrySource, wait_for="/wheel_odometry")
     rt.wait_until(lambda: "/odom" in recording.topics, 10, "the recorder to subscribe to /odom")
-    rt.poll_until(lambda: not child.alive, RUN_S + 1.0)  # the whole run: it ends by itself
+    child.wait_for_report("done", RUN_S + 10.0)  # the whole run
     rt.stop_child("wheel_odometry")
     recording.stop()
     return bags.bag_info(output)

@@ -98,7 +98,7 @@ def _judge(report: CheckReport, clock: SimClock, probe: _Probe, speeds, silent_f
         abs(got - want) <= SPEED_TOLERANCE for got, want in zip(probe.speeds, speeds, strict=True))
     worst = max((abs(g - w) for g, w in zip(probe.speeds, speeds, strict=False)), default=0.0)
     report.add("each speed is the distance over the time between the two header stamps", close,
-               f"largest difference {worst:.3g} m/s",
+               f"largest difference {worst:.3g} m/s" if probe.speeds else "no speed published",
                "Use msg.header.stamp (when the pose was measured), not the time it arrived.")
     alarms = [t for t, stale in probe.stale if stale]
     first = alarms[0] - silent_from if alarms else None

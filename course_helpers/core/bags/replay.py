@@ -30,7 +30,7 @@ class SimReplay:
         chosen = [self.info.topic(t) for t in topics] if topics else list(self.info.topics)
         self.topics = [t.name for t in chosen]
         self.remap = dict(remap or {})
-        if clock.now_s * 1e9 > self.info.start_ns:
+        if clock.now_s * 1e9 > self.info.start_ns + 1_000:  # (1 µs: a float's rounding of the start)
             raise CourseError(f"the clock is at {clock.now_s:.3f} s, after the bag's start "
                               f"({self.info.start_ns / 1e9:.3f} s): make it with start_s at or before "
                               f"the bag's start")
