@@ -1,7 +1,10 @@
 """Recording: ``ros2 bag record`` in the kernel, in the background of the runtime's executor.
 
 A :class:`Recording` has one node, ``rosbag2_recorder`` (the name ``ros2 bag record`` gives its
-node), spun by the runtime's executor. Like rosbag2's recorder it
+node), in the runtime's context and spun by an executor of its own, in a thread of its own: like
+the recorder process of ``ros2 bag record``, it keeps taking messages while a callback of the
+notebook's nodes blocks the runtime's executor (08b's slow subscriber sleeps in it). Like rosbag2's
+recorder it
 
 * looks for the topics to record in the graph every :data:`POLLING_INTERVAL_S` (rosbag2's
   ``--polling-interval`` default), so a topic that appears later is still recorded;
@@ -30,6 +33,7 @@ from rclpy.parameter import Parameter
 from course_helpers.core.bags.qos import request_for_offers, to_bag_qos
 from course_helpers.core.bags.writer import DEFAULT_STORAGE, BagWriter, WriteStats, check_new_bag
 from course_helpers.core.errors import CourseError
+from course_helpers.core.executors import SpinThread, plain_executor
 from course_helpers.core.names import is_hidden
 from course_helpers.core.validation import check_topic_name
 
@@ -60,14 +64,17 @@ class Recording:
         self._close_lock = threading.Lock()
         self._writer = BagWriter(path, storage)
         self._subscriptions = []
+        self.errors: list[BaseException] = []
         self.node = Node(NODE_NAME, context=rt.context, enable_rosout=False, start_parameter_services=False,
                          parameter_overrides=[Parameter("use_sim_time", value=use_sim_time)])
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._timer = self.node.create_timer(POLLING_INTERVAL_S, self._tick, clock=steady)
-        rt.executor.add_node(self.node)
-        rt.call_in_executor(self._subscribe_new)  # subscribe to what the graph already shows, now
+        self._subscribe_new()  # what the graph already shows, before the first message can come
+        self._executor = plain_executor("single", rt.context)
+        self._executor.add_node(self.node)
+        self._spinner = SpinThread(self._executor, f"bag-record-{path.name}", self.errors.append).start()
 
-    # ------------------------------------------------------------------ in the executor thread
+    # ------------------------------------------------------------------ in the recorder's executor
     def _wanted(self, name: str) -> bool:
         if name in self.wanted:
             return True
@@ -123,16 +130,13 @@ class Recording:
             if self.stats is not None:
                 return
             try:
+                self._spinner.stop()
+                self._end_subscriptions()  # (no-op if the duration already ended them)
                 self.stats = self._writer.close()
             finally:
+                self._executor.shutdown(timeout_sec=1.0)
+                self.node.destroy_node()
                 self.finished.set()
-        if self.rt.running:
-            self.rt.call_in_executor(self._destroy_node)
-
-    def _destroy_node(self) -> None:
-        if self.rt.executor is not None:
-            self.rt.executor.remove_node(self.node)
-        self.node.destroy_node()
 
     @property
     def running(self) -> bool:
@@ -141,9 +145,6 @@ class Recording:
     def stop(self) -> WriteStats:
         """End the recording now (if it still runs) and close the bag; what it wrote."""
         if not self.finished.is_set():
-            if self.rt.running:
-                self.rt.call_in_executor(self._end_subscriptions)
-            self._stopping = True
             self._close()
         return self.stats
 
