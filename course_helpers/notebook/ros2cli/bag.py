@@ -41,8 +41,9 @@ def _record(rt, args):
     output = args.output or datetime.datetime.now().strftime("rosbag2_%Y_%m_%d-%H_%M_%S")
     bags.record(rt, output, topics, all_topics=args.all, regex=args.regex, storage=args.storage,
                             duration=args.duration, overwrite=args.overwrite, use_sim_time=args.use_sim_time)
-    what = "every topic" if args.all else _names(topics) + (f" and topics matching {args.regex!r}"
-                                                            if args.regex else "")
+    parts = [_names(topics)] if topics else []
+    parts += [f"the topics matching {args.regex!r}"] if args.regex else []
+    what = "every topic" if args.all else " and ".join(parts)
     until = f"for {args.duration:g} s" if args.duration else "until %ros2 bag stop"
     print(f"Recording {what} to '{output}' ({args.storage}), in the background {until}.")
     return None
