@@ -27,6 +27,7 @@ class ReplayResult:
     after the bag's first message]."""
 
     scans: int = 0
+    duration_s: float = 0.0  # of the bag
     published: list[tuple[float, float]] = field(default_factory=list)
     errors: list[tuple[float, int, str]] = field(default_factory=list)  # (time s, scan number, error)
 
@@ -46,9 +47,10 @@ class _Probe(Node):
 
 def replay_scans(rt, bag, node_class, topic: str = "/robot1/scan") -> ReplayResult:
     """Replay ``topic`` of ``bag`` into a new ``node_class()`` under the bag's clock; the result."""
-    start_s = bags.bag_info(bag).start_ns / 1e9
+    info = bags.bag_info(bag)
+    start_s = info.start_ns / 1e9
     clock = SimClock(rt, start_s=start_s)
-    result = ReplayResult()
+    result = ReplayResult(duration_s=info.duration_ns / 1e9)
     node = probe = replay = None
     try:
         node = clock.drive(rt.build(node_class))
@@ -72,17 +74,28 @@ def replay_scans(rt, bag, node_class, topic: str = "/robot1/scan") -> ReplayResu
 
 
 def plot_time_to_collision(result: ReplayResult, title: str):
-    """The time to collision the node published over the bag's time; returns the figure."""
+    """The time to collision the node published over the bag's time (clipped to +-10 s; infinite ones
+    on a line of their own), and a red line at each callback error; returns the figure."""
+    import math
+
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8, 3))
-    finite = [(t, v) for t, v in result.published if v != float("inf")]
-    ax.plot([t for t, _ in finite], [v for _, v in finite], ".", markersize=4)
-    for t, _scan, _error in result.errors:
-        ax.axvline(t, color="tab:red", alpha=0.4)
-    ax.set_ylim(0, 10)
+    limit = 10.0  # s shown either side of zero
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    finite = [(t, max(-limit, min(limit, v))) for t, v in result.published if math.isfinite(v)]
+    endless = [t for t, v in result.published if not math.isfinite(v)]
+    ax.plot([t for t, _ in finite], [v for _, v in finite], ".", markersize=5, label="time to collision")
+    if endless:
+        ax.plot(endless, [0.9 * limit] * len(endless), "x", color="tab:green", markersize=4,
+                label="infinite: not closing in")
+    for n, (t, _scan, _error) in enumerate(result.errors):
+        ax.axvline(t, color="tab:red", alpha=0.5, label="callback raised" if n == 0 else None)
+    ax.axhline(0.0, color="black", linewidth=0.8)
+    ax.set_xlim(0, max(result.duration_s, 0.1))
+    ax.set_ylim(-limit, limit)
     ax.set_xlabel("time in the bag [s]")
     ax.set_ylabel("time to collision [s]")
     ax.set_title(title)
+    ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     return fig
