@@ -27,14 +27,31 @@ from pathlib import Path
 MiB = 1024 * 1024
 
 
-def _row(size: int, rate: float, seconds: float, folder: Path, storage: str) -> dict:
+def writer_capacity(folder: Path, storage: str, size: int = MiB, count: int = 200) -> float:
+    """MiB/s the bag writer alone stores: ``count`` messages of ``size`` bytes queued at once
+    (the baseline of the rows: what the disk and the storage format allow, no ROS involved)."""
+    from course_helpers.core.bags import BagWriter
+
+    writer = BagWriter(folder / f"capacity_{storage}", storage, cache_limit_bytes=(count + 1) * size)
+    writer.add_topic("/capacity", "std_msgs/msg/UInt8MultiArray", [])
+    data = bytes(size)
+    started = time.perf_counter()
+    for n in range(count):
+        writer.write("/capacity", n, data)
+    stats = writer.close()
+    elapsed = time.perf_counter() - started
+    shutil.rmtree(folder / f"capacity_{storage}")
+    return stats.bytes_written / MiB / elapsed
+
+
+def _row(size: int, rate: float, seconds: float, folder: Path, storage: str, reliability: str) -> dict:
     from course_helpers import get_runtime
     from course_helpers.chapters.ch08b_lab import ExperimentConfig, run_experiment
     from course_helpers.core import bags
 
     rt = get_runtime()
     count = max(1, round(rate * seconds))
-    config = ExperimentConfig(reliability="best_effort", depth=min(count, 1000), rate_hz=rate,
+    config = ExperimentConfig(reliability=reliability, depth=min(count, 1000), rate_hz=rate,
                               payload_bytes=size, duration_s=seconds)
     path = folder / f"bag_{size}_{rate:g}"
     recording = bags.record(rt, path, regex="^/qos_lab/run_", storage=storage)
@@ -43,10 +60,12 @@ def _row(size: int, rate: float, seconds: float, folder: Path, storage: str) -> 
     stats = recording.stop()  # writes what is still queued, then metadata.yaml
     elapsed = time.monotonic() - started
     on_disk = sum(p.stat().st_size for p in path.iterdir())
-    row = {"payload_bytes": size, "rate_hz": rate, "offered_MiB_s": round(size * rate / MiB, 3),
+    row = {"reliability": reliability, "payload_bytes": size, "rate_hz": rate,
+           "offered_MiB_s": round(size * rate / MiB, 3),
            "sent": result.published, "subscriber_delivered": result.delivered,
            "recorder_received": stats.received, "written": stats.written, "dropped_cache_full": stats.dropped,
-           "bag_MiB": round(on_disk / MiB, 2), "write_MiB_s": round(stats.bytes_written / MiB / elapsed, 1),
+           "bag_MiB": round(on_disk / MiB, 2), "recording_s": round(elapsed, 2),
+           "write_MiB_s": round(stats.bytes_written / MiB / max(stats.write_seconds, 1e-9), 1),
            "recorded_share": round(stats.written / result.published, 3) if result.published else 0.0}
     shutil.rmtree(path)
     return row
@@ -59,35 +78,44 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--rates", type=float, nargs="+", default=[100.0, 400.0], help="samples per second")
     parser.add_argument("--seconds", type=float, default=0.75, help="how long each run sends (the lab: 0.75)")
     parser.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap")
+    parser.add_argument("--reliability", choices=["best_effort", "reliable"], nargs="+",
+                        default=["best_effort", "reliable"])
     parser.add_argument("--json", help="also write the rows to this file")
     args = parser.parse_args(argv)
 
     folder = Path(tempfile.mkdtemp(prefix="bag_record_rate_"))
     rows = []
-    print(f"{'payload':>9} {'rate':>6} {'offered':>10} {'sent':>5} {'sub got':>7} {'rec got':>7} "
-          f"{'written':>7} {'dropped':>7} {'bag':>9} {'write':>11} {'share':>6} {'/ base':>6}")
+    capacity = writer_capacity(folder, args.storage)
+    print(f"the bag writer alone ({args.storage}, 1 MiB messages): {capacity:.0f} MiB/s (the baseline of "
+          f"'/ cap' below)")
+    print(f"{'QoS':<11} {'payload':>8} {'rate':>5} {'offered':>12} {'/ cap':>6} {'sent':>5} {'sub got':>7} "
+          f"{'rec got':>7} {'written':>7} {'dropped':>7} {'bag':>10} {'writing at':>12} {'share':>6} "
+          f"{'/ base':>6}")
     try:
-        for size in sorted(args.sizes):
-            for rate in sorted(args.rates):
-                row = _row(size, rate, args.seconds, folder, args.storage)
-                base = rows[0]["recorded_share"] if rows else row["recorded_share"]
-                row["share_vs_baseline"] = round(row["recorded_share"] / base, 3) if base else 0.0
-                rows.append(row)
-                print(f"{size:>9} {rate:>6g} {row['offered_MiB_s']:>6.2f} MiB/s {row['sent']:>5} "
-                      f"{row['subscriber_delivered']:>7} {row['recorder_received']:>7} {row['written']:>7} "
-                      f"{row['dropped_cache_full']:>7} {row['bag_MiB']:>5.2f} MiB "
-                      f"{row['write_MiB_s']:>5.1f} MiB/s {row['recorded_share']:>6.3f} "
-                      f"{row['share_vs_baseline']:>6.3f}", flush=True)
+        for reliability in args.reliability:
+            for size in sorted(args.sizes):
+                for rate in sorted(args.rates):
+                    row = _row(size, rate, args.seconds, folder, args.storage, reliability)
+                    base = rows[0]["recorded_share"] if rows else row["recorded_share"]
+                    row["share_vs_baseline"] = round(row["recorded_share"] / base, 3) if base else 0.0
+                    row["offered_vs_capacity"] = round(row["offered_MiB_s"] / capacity, 3)
+                    rows.append(row)
+                    print(f"{reliability:<11} {size:>8} {rate:>5g} {row['offered_MiB_s']:>6.2f} MiB/s "
+                          f"{row['offered_vs_capacity']:>6.2f} {row['sent']:>5} "
+                          f"{row['subscriber_delivered']:>7} "
+                          f"{row['recorder_received']:>7} {row['written']:>7} {row['dropped_cache_full']:>7} "
+                          f"{row['bag_MiB']:>6.2f} MiB {row['write_MiB_s']:>6.0f} MiB/s "
+                          f"{row['recorded_share']:>6.3f} {row['share_vs_baseline']:>6.3f}", flush=True)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    behind = [r for r in rows if r["written"] < r["sent"]]
-    if behind:
-        first = behind[0]
-        print(f"the recorder stopped keeping up at {first['offered_MiB_s']:g} MiB/s "
-              f"({first['payload_bytes']} B at {first['rate_hz']:g} Hz): it wrote {first['written']} of "
-              f"{first['sent']} samples")
-    else:
-        print("the recorder kept up with every load of this run")
+    for row in rows:
+        if row["written"] < row["sent"]:
+            dropped = row["dropped_cache_full"]
+            where = (f"the recorder itself dropped {dropped} (its cache was full)" if dropped
+                     else "the recorder wrote all it received; the rest never reached it (for best effort, "
+                          "nor the lab's own subscriber: lost on the way)")
+            print(f"{row['reliability']}, {row['payload_bytes']} B at {row['rate_hz']:g} Hz "
+                  f"({row['offered_MiB_s']:g} MiB/s): {row['written']} of {row['sent']} recorded; {where}")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))
     from course_helpers import shutdown_runtime

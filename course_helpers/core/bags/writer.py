@@ -15,6 +15,7 @@ import collections
 import os
 import shutil
 import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -64,6 +65,7 @@ class WriteStats:
     written: int = 0
     dropped: int = 0
     bytes_written: int = 0
+    write_seconds: float = 0.0  # the writer thread's time inside the storage's write calls
     per_topic: dict = field(default_factory=dict)
 
 
@@ -160,7 +162,9 @@ class BagWriter:
                                                      offered_qos_profiles=topic.offered)
             return
         topic, stamp, data = item
+        started = time.perf_counter()
         writer.write(topic.connection, stamp, data)
+        self.stats.write_seconds += time.perf_counter() - started
         topic.count += 1
         self.stats.written += 1
         self.stats.bytes_written += len(data)
