@@ -30,10 +30,17 @@ MAX_MODULE_LINES = 500
 
 # --- what core/ may import besides the standard library: two named lists
 # ROS 2's own Python packages, from the Jazzy wheels.
-ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser", "rosgraph_msgs"}
+ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser", "rosgraph_msgs"}  # rosgraph_msgs: /clock
 # A few other pinned libraries, each for one job and only in the modules named.
 CORE_EXTRAS = {
-    "yaml": ({"course_helpers.core.msg_yaml"}, "messages as YAML, the way `ros2 topic echo` prints them"),
+    "yaml": ({"course_helpers.core.msg_yaml", "course_helpers.core.bags.writer",
+              "course_helpers.core.bags.reader"},
+             "messages as YAML, the way `ros2 topic echo` prints them; a bag's metadata.yaml, read and "
+             "written in the key order Jazzy's rosbag2 uses"),
+    "rosbags": ({"course_helpers.core.bags.qos", "course_helpers.core.bags.types",
+                 "course_helpers.core.bags.writer", "course_helpers.core.bags.reader"},
+                "rosbag2's storage formats (MCAP, SQLite 3) read and written in pure Python: the QoS "
+                "records a bag keeps, message definitions and RIHS01 hashes, the writer and the reader"),
     "numpy": ({"course_helpers.core.build_interfaces"}, "the rosidl build needs NumPy's C headers"),
     "psutil": ({"course_helpers.core.domains", "course_helpers.core.supervisor",
                 "course_helpers.core.udp_sockets", "course_helpers.core.processes",

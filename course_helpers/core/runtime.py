@@ -23,6 +23,7 @@ import atexit
 import contextlib
 import functools
 import os
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -145,6 +146,8 @@ class CourseRuntime:
     def stop(self) -> None:
         """Stop children, destroy nodes, join the executor thread and shut the context down."""
         with self._lock:
+            for bags in ("course_helpers.core.bags.recorder", "course_helpers.core.bags.player"):  # loaded:
+                _quietly(getattr(sys.modules.get(bags), "stop_all", lambda: None))  # close while it spins
             self._active = False
             self.stop_children(list(self.children()))
             if self._spinner is not None:

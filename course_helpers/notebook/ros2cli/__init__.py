@@ -4,7 +4,8 @@ ros2cli cannot be installed from PyPI, so the notebooks get the same verbs here,
 with ros2cli's output format, run against the live graph of the kernel's ROS
 domain. Chapters 01-10 use them: 01 ``node``, 03 ``topic`` (list/info/echo/hz/pub),
 04 ``service``, 05 ``action``, 06 ``param``, 08 the ``--qos-*`` flags of
-``topic echo``/``topic pub``; ``interface show`` wherever a type is introduced.
+``topic echo``/``topic pub``; ``interface show`` wherever a type is introduced; 03b, 08b and 10
+``bag`` (record/info/play).
 
 ``run('topic echo /chatter --count 2')`` (or a list of arguments) prints what
 ``ros2 topic echo /chatter`` would print and returns an exit code. Nothing here
@@ -23,7 +24,7 @@ import shlex
 
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.msg_yaml import message_to_dict, message_to_yaml, set_message_fields
-from course_helpers.notebook.ros2cli import action, interface, node, param, service, topic
+from course_helpers.notebook.ros2cli import action, bag, interface, node, param, service, topic
 from course_helpers.notebook.ros2cli._common import _Parser, _ParserExit, _UsageError
 
 __all__ = ["build_parser", "message_to_dict", "message_to_yaml", "run", "set_message_fields"]
@@ -81,7 +82,8 @@ def run(argv: list[str] | str, rt=None) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The argparse tree of all supported commands (``ros2 <command> <verb> ...``)."""
     parser = _Parser(prog="ros2", description="ros2 commands for the notebook (a subset of ros2cli).")
-    commands = parser.add_subparsers(dest="command", metavar="{node,topic,service,action,param,interface}",
+    commands = parser.add_subparsers(dest="command",
+                                     metavar="{node,topic,service,action,param,interface,bag}",
                                      title="commands", parser_class=_Parser)
     commands.required = True
     node.add_verbs(commands.add_parser("node", help="Inspect nodes"))
@@ -90,4 +92,5 @@ def build_parser() -> argparse.ArgumentParser:
     action.add_verbs(commands.add_parser("action", help="Inspect actions and send goals"))
     param.add_verbs(commands.add_parser("param", help="List, get, set and dump parameters"))
     interface.add_verbs(commands.add_parser("interface", help="Show message/service/action definitions"))
+    bag.add_verbs(commands.add_parser("bag", help="Record, inspect and play rosbag2 bags"))
     return parser
