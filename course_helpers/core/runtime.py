@@ -6,7 +6,7 @@ Every chapter starts with ``rt = get_runtime()``. The runtime
 * spins one background executor thread (single-threaded by default; chapter 02 opts into
   multi-threaded to teach callback groups);
 * keeps node names unique: a node whose name is taken is destroyed first (no duplicates on re-run);
-* waits for futures, conditions and messages from the notebook without spinning;
+* waits for futures, conditions and messages from the notebook without spinning (:mod:`.runtime_waits`);
 * runs nodes in child processes through the process layer, and stops them with itself;
 * isolates each kernel in its own ROS domain with localhost-only discovery;
 * heals: if its context is shut down from outside (``rclpy.shutdown(context=rt.context)``, or
@@ -30,14 +30,13 @@ from collections.abc import Callable
 
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
 
 from course_helpers.core import console as _console
 from course_helpers.core import processes
 from course_helpers.core.dds_config import apply_course_discovery, init_context
 from course_helpers.core.domains import DomainChoice, choose_domain
-from course_helpers.core.errors import CourseError, WaitTimeout
+from course_helpers.core.errors import CourseError
 from course_helpers.core.executors import (
     CourseMultiThreadedExecutor,
     CourseSingleThreadedExecutor,
@@ -48,17 +47,13 @@ from course_helpers.core.healing import Origins
 from course_helpers.core.logs import RosoutReader, log_to_consoles
 from course_helpers.core.names import as_full_name, full_name
 from course_helpers.core.node_hook import build_nodes, destroy_fully
+from course_helpers.core.runtime_waits import NotebookWaits
 from course_helpers.core.spawning import ChildNodes
 from course_helpers.core.status import status_of, status_table
 from course_helpers.core.validation import (
-    check_depth,
     check_namespace,
     check_node_name,
-    check_topic_name,
-    interface_name,
-    resolve_interface,
 )
-from course_helpers.core.waiting import poll_until, wait_for_future, wait_until
 
 EXECUTORS = ("single", "multi")
 HANDLER_REMOVED = ("rclpy's signal handler has been removed again, so the interrupt button stops "
@@ -75,7 +70,7 @@ def _children_method(method: Callable) -> Callable:
     return call
 
 
-class CourseRuntime:
+class CourseRuntime(NotebookWaits):
     """One per kernel: see the module docstring. Get it with :func:`get_runtime`."""
 
     def __init__(self, executor: str = "single", threads: int = 4):
@@ -342,71 +337,6 @@ class CourseRuntime:
 
     wait_for_child_node = _children_method(ChildNodes.wait_for_child_node)
     children = _children_method(ChildNodes.children)
-
-    # ------------------------------------------------------------------ waiting
-    def call_in_executor(self, function: Callable, *args, timeout: float = 5.0):
-        """Run ``function(*args)`` in the executor thread and return its result.
-
-        Called from the executor thread itself (from a callback), it runs the function directly.
-        """
-        self._ensure_running()
-        if self._in_executor_thread():
-            return function(*args)
-        task = self.executor.create_task(function, *args)
-        self.executor.wake()
-        return self.wait_for_future(task, timeout=timeout, what=getattr(function, "__name__", "task"))
-
-    def settle_callbacks(self, rounds: int = 2, timeout: float = 60.0) -> None:
-        """Wait until the executor ran every callback ready now, and those they made ready, ``rounds``
-        deep: a sentinel on its own queue (a task runs before its next wait), not a window (a chain
-        of this kernel's nodes, one hop a round, has finished). ``timeout`` bounds a hang only."""
-        for _ in range(rounds):
-            self.call_in_executor(lambda: None, timeout=timeout)
-
-    wait_for_future = staticmethod(wait_for_future)
-
-    def wait_until(self, predicate: Callable[[], object], timeout: float = 5.0,
-                   what: str = "the condition") -> bool:
-        """Wait until ``predicate()`` is true; if not, raise :class:`WaitTimeout` naming ``what``
-        and the nodes the graph lists at that moment (what is there when something is not).
-
-        The wait wakes on graph changes, child reports and this kernel's callbacks, and looks every
-        20 ms besides (:mod:`.waiting`)."""
-        try:
-            return wait_until(predicate, timeout, what)
-        except WaitTimeout as exc:
-            listed = ", ".join(self.graph_nodes()) or "no node"
-            raise WaitTimeout(f"{exc}; the graph lists {listed}") from None
-
-    def poll_until(self, predicate: Callable[[], object], timeout: float = 5.0) -> bool:
-        """Wait until ``predicate()`` is true; False (not an error) if ``timeout`` passes first."""
-        return poll_until(predicate, timeout)
-
-    def wait_for_messages(self, topic: str, msg_type, count: int = 1, timeout: float = 5.0,
-                          qos: QoSProfile | int = 10) -> list:
-        """Subscribe to ``topic``, return the first ``count`` messages, then unsubscribe."""
-        check_topic_name(topic)
-        msg_type = resolve_interface(msg_type, "msg")
-        if isinstance(qos, int):
-            qos = check_depth(qos)
-        if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-            raise CourseError(f"count must be a whole number >= 1, got {count!r}")
-        received: list = []
-        internal = self.graph
-        sub = internal.create_subscription(msg_type, topic, received.append, qos)
-        try:
-            wait_until(lambda: len(received) >= count, timeout,
-                       f"{count} message(s) on {topic} ({interface_name(msg_type)}); got {len(received)}")
-        finally:
-            self.call_in_executor(internal.destroy_subscription, sub)
-        return received[:count]
-
-    def wait_for_node(self, fqn: str, timeout: float = 10.0) -> None:
-        """Wait until a node (in any process of this domain) shows up in the ROS graph (woken by the
-        graph's changes)."""
-        fqn = as_full_name(fqn)
-        graph = self._graph_view()
-        wait_until(lambda: fqn in graph.nodes(), timeout, f"node {fqn} in the graph", graph.wait_period)
 
     # ------------------------------------------------------------------ the graph
     def graph_nodes(self, include_hidden: bool = False) -> list[str]:
