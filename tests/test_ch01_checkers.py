@@ -149,7 +149,7 @@ WRONG = [
     (NumbersForAlarms, "publishes on /silent_talkers with type std_msgs/msg/String"),
     (Jumpy, "no alarm while both talkers talk (2 s)"),
     (GraphWatchdog, REPORTS_SILENCE),
-    (WallClockWatchdog, REPORTS_SILENCE),
+    (WallClockWatchdog, "no alarm after the clock stood still for 1 s (a paused simulation)"),
     (NaggingWatchdog, "reports that silence once"),
     (ReportsEveryone, "never reports wd_talker_2, which keeps talking"),
     (ReportsOnceEver, "reports wd_talker_1 again after it talked again and fell silent"),

@@ -9,9 +9,14 @@ talking while its node stays in the graph, as a crashed process's node stays unt
 The watchdog must report it, once, and never the one that keeps talking. Then the checker talks in the
 first one's name again, as a restarted talker would, and stops: the watchdog must report that new
 silence too. Every time below is ROS time the checker owns, so the verdict is the same on any machine.
+Once, the clock stands still for a second of wall time, as a paused simulation's does: a pause is no
+silence, so a watchdog that keeps wall time (time.monotonic()) reports both talkers then, on any machine
+(a slower machine only lengthens the pause).
 """
 
 from __future__ import annotations
+
+import time
 
 from rclpy.node import Node
 from std_msgs.msg import String
@@ -29,6 +34,9 @@ REPEAT_WINDOW_S = 2.0  # after the report: no second alarm about the same silenc
 RETURN_MESSAGES = 10  # the checker talks again in the first talker's name: this many messages...
 RETURN_PERIOD_S = 0.05  # ...this far apart
 STEP_S = 0.01  # the checker's clock moves in steps this long
+PAUSE_WALL_S = 1.0  # the clock stands still this long (wall time, at least): twice the silence threshold
+AFTER_PAUSE_S = 0.35  # then the talkers wait this long (ROS time): a 10 Hz timer looks before they talk,
+                      # and the longest silence (0.35 + 1/19 + a step) stays under SILENCE_S
 
 
 def _endpoint_types(probe, topic: str, node, publishers: bool) -> list[str]:
@@ -80,6 +88,13 @@ class _Talk:
     def run(self, seconds: float) -> None:
         self.clock.advance(seconds, STEP_S, self.between_steps)
 
+    def pause(self) -> None:
+        """The clock stands still for PAUSE_WALL_S of wall time (an input: load only lengthens it), then
+        the talkers keep quiet for AFTER_PAUSE_S of ROS time, so the watchdog's timer looks first."""
+        time.sleep(PAUSE_WALL_S)
+        for name in self.talking:
+            self.next_at[name] = self.clock.now_s + AFTER_PAUSE_S
+
     def naming(self, sender: str, since: float = float("-inf")) -> list[float]:
         """When (ROS time) each alarm naming ``sender`` came, from ``since`` on."""
         return [at for at, text in self.alarms if sender in text and at >= since]
@@ -128,6 +143,13 @@ def _run_scenario(report: CheckReport, talk: _Talk) -> None:
     report.add(f"no alarm while both talkers talk ({QUIET_WINDOW_S:g} s)", not talk.alarms,
                f"got {talk.alarms[0][1]!r} after {talk.alarms[0][0] - started:.2f} s" if talk.alarms else "",
                hint="Report a sender only when it has been silent for more than SILENCE_S.")
+    talk.alarms.clear()
+    talk.pause()
+    talk.run(AFTER_PAUSE_S + 2 * TALKER_PERIOD_S)
+    report.add(f"no alarm after the clock stood still for {PAUSE_WALL_S:g} s (a paused simulation)",
+               not talk.alarms, f"got {talk.alarms[0][1]!r}" if talk.alarms else "",
+               hint="Keep time with your node's own clock, self.get_clock().now(): while a simulation or "
+                    "a replay pauses, ROS time stands still, and a pause is no silence.")
     talk.alarms.clear()
     talk.talking.discard(silent)  # it stops; its node stays in the graph, as a crashed one would
     talk.run(REPORT_WITHIN_S)
