@@ -1,27 +1,34 @@
-"""The private parts of rclpy (and rcl) that the package relies on, checked against the pinned release.
+"""The private parts of rclpy (and rcl, and CPython) the package relies on, and the public ones it
+overrides or wraps, checked against the pinned release.
 
 rclpy promises nothing about names that start with an underscore, nor about rcl's C structs. The
 package uses these, each for a reason rclpy's public API does not cover (environment.txt pins
-``ros-jazzy-rclpy==7.1.6``):
+``ros-jazzy-rclpy==7.1.6``), and reads each directly where it uses it, so a rename fails loudly:
 
-* ``Executor._spin_once_impl(timeout_sec, wait_condition)``, overridden and called in
-  ``core/executors.py``: the one spin loop with a stop condition, and a console per callback;
-* ``Executor.wait_for_ready_callbacks(timeout_sec, nodes, condition)`` returning ``(Task, entity,
-  node)``, in ``core/executors.py``: which node a callback belongs to;
+* ``Executor.spin_once_until_future_complete(future, timeout_sec)``, overridden by ``WakeOnce`` in
+  ``core/executors.py`` (the future wakes the executor once, not every turn), written with
+  ``wait_for_ready_callbacks(timeout_sec, nodes, condition)`` returning ``(Task, entity, node)`` and
+  its ``ShutdownException``, ``TimeoutException`` and ``ConditionReachedException``; the same wait
+  in ``core/sim_clock.py`` runs what is ready without blocking;
 * patching ``Node.__init__(self, node_name, *, context=..., namespace=..., ...)`` in
   ``core/node_hook.py``: a textbook ``super().__init__('x')`` joins the runtime's context;
+* wrapping ``rclpy.init(*, args, context, domain_id, signal_handler_options)`` in
+  ``notebook/interrupts.py``: a textbook ``rclpy.init()`` installs no signal handler;
 * ``rclpy.impl.implementation_singleton.rclpy_implementation.Node(name, namespace, context, cli_args,
   use_global_arguments, enable_rosout)`` in ``core/node_hook.py``: a node without a single endpoint
   (a child's participant keeper);
+* ``LifecycleNodeMixin._state_machine`` in ``core/node_hook.py``: destroyed with its lifecycle node;
 * ``.handle.pointer`` of a node, a context and a guard condition, and from ``librcl.so``
   ``rcl_node_get_graph_guard_condition``, the ``rcl_wait_set_*`` functions, ``rcl_wait`` and the
   ``rcl_wait_set_t`` layout, in ``core/graph_events.py``: graph changes as events;
-* ``MultiThreadedExecutor._executor`` and ``._futures``, ``Executor._tasks``, in
-  ``core/executors.py`` and ``chapters/ch04_services.py``: let queued callbacks finish, or see
-  them, before a teardown;
+* ``MultiThreadedExecutor._executor`` and ``._futures``, ``Executor._tasks`` (a list of (task, entity,
+  node); newer rclpy has ``_pending_tasks`` and ``_ready_tasks`` instead), in ``core/executors.py``
+  and ``chapters/ch04_services.py``: let queued callbacks finish, or see them, before a teardown;
 * ``Client._pending_requests`` in ``chapters/ch04_services.py``: release a callback blocked in
   ``client.call()`` at teardown;
-* ``ActionServer._action_type`` in ``checks/ch05_actions.py``: which action a student's server serves;
+* ``Client.call`` living in ``rclpy/client.py``, and CPython's ``sys._current_frames()``, in
+  ``chapters/ch04_services.py``: a callback of a single-threaded executor waiting in ``call()``
+  (a deadlock by construction);
 * ``rclpy._rclpy_pybind11.RCLError`` in ``chapters/ch08b_lab/publisher.py``: a full KEEP_ALL
   history (back-pressure).
 
@@ -65,14 +72,27 @@ def _parameters(function) -> list[str]:
     return list(inspect.signature(function).parameters)
 
 
-def test_the_spin_loop_hooks_are_there():
-    for cls in (SingleThreadedExecutor, MultiThreadedExecutor):
-        assert _parameters(cls._spin_once_impl)[:3] == ["self", "timeout_sec", "wait_condition"], (
-            _changed(f"{cls.__name__}._spin_once_impl(timeout_sec, wait_condition)", "core/executors.py"))
-    waits = _parameters(Executor._wait_for_ready_callbacks)
+def test_the_spin_loop_overrides_and_calls_what_rclpy_has():
+    from rclpy import executors
+
+    assert _parameters(Executor.spin_once_until_future_complete)[:3] == ["self", "future", "timeout_sec"], (
+        _changed("Executor.spin_once_until_future_complete(future, timeout_sec)", "core/executors.py"))
+    waits = _parameters(Executor._wait_for_ready_callbacks)  # wait_for_ready_callbacks(*args, **kwargs)
     assert waits[:4] == ["self", "timeout_sec", "nodes", "condition"], (
         _changed("Executor._wait_for_ready_callbacks(timeout_sec, nodes, condition), which "
-                 "wait_for_ready_callbacks passes its arguments to", "core/executors.py"))
+                 "wait_for_ready_callbacks passes its arguments to",
+                 "core/executors.py and core/sim_clock.py"))
+    for name in ("ShutdownException", "TimeoutException", "ConditionReachedException"):
+        assert issubclass(getattr(executors, name, None) or object, Exception), _changed(
+            f"rclpy.executors.{name}", "core/executors.py (WakeOnce)")
+
+
+def test_rclpy_init_takes_the_keywords_the_wrapper_passes():
+    parameters = inspect.signature(rclpy.init).parameters
+    for keyword in ("args", "context", "domain_id", "signal_handler_options"):
+        kind = getattr(parameters.get(keyword), "kind", None)
+        assert kind is inspect.Parameter.KEYWORD_ONLY, _changed(f"rclpy.init's keyword {keyword!r}",
+                                                                "notebook/interrupts.py")
 
 
 def test_wait_for_ready_callbacks_hands_out_a_task_its_entity_and_its_node(context):
@@ -156,22 +176,36 @@ def test_the_executors_keep_their_pools_and_task_lists(context):
         executor.shutdown()
 
 
-def test_a_client_keeps_its_pending_requests_and_a_server_its_action_type(context):
-    from course_interfaces.action import Navigate
-    from rclpy.action import ActionServer
+def test_a_client_keeps_its_pending_requests_and_waits_in_client_py(context):
+    from rclpy.client import Client
     from std_srvs.srv import Trigger
+
+    from course_helpers.chapters.ch04_services import CLIENT_MODULE
 
     node = Node("private_api_entities", context=context)
     try:
         client = node.create_client(Trigger, "private_api_trigger")
         assert isinstance(getattr(client, "_pending_requests", None), dict), _changed(
             "Client._pending_requests", "chapters/ch04_services.py")
-        server = ActionServer(node, Navigate, "private_api_navigate", lambda handle: None)
-        assert getattr(server, "_action_type", None) is Navigate, _changed(
-            "ActionServer._action_type", "checks/ch05_actions.py")
-        server.destroy()
+        assert Client.call.__code__.co_filename.endswith(CLIENT_MODULE), _changed(
+            f"where Client.call is defined (now {Client.call.__code__.co_filename})",
+            "chapters/ch04_services.py (waiting_in_a_call)")
+        assert callable(getattr(sys, "_current_frames", None)), (
+            "this Python has no sys._current_frames(): chapters/ch04_services.py reads the executor "
+            "thread's stack with it")
     finally:
         node.destroy_node()
+
+
+def test_a_lifecycle_node_keeps_its_state_machine(context):
+    from rclpy.lifecycle import LifecycleNode
+
+    node = LifecycleNode("private_api_lifecycle", context=context)
+    try:
+        assert hasattr(getattr(node, "_state_machine", None), "destroy_when_not_in_use"), _changed(
+            "LifecycleNodeMixin._state_machine", "core/node_hook.py (destroy_fully)")
+    finally:
+        node_hook.destroy_fully(node)
 
 
 def test_rcl_errors_keep_their_class():
