@@ -49,7 +49,8 @@ def test_the_node_hook_is_restored_after_use_and_after_an_error(rt):
 def test_a_half_built_node_leaves_nothing_in_the_graph(rt):
     with pytest.raises(ValueError):
         rt.add(BrokenAfterInit)
-    assert not poll_until(lambda: "/half_built" in rt.graph_nodes(), 1.0)
+    # this process's own graph cache drops a destroyed node at once (no window to wait out)
+    assert "/half_built" not in rt.graph_nodes()
 
 
 def test_the_hook_is_reentrant_and_uses_the_innermost_context(rt):

@@ -17,6 +17,7 @@ from std_msgs.msg import String
 from test_msgs.action import Fibonacci
 
 from course_helpers import CourseError, get_runtime
+from course_helpers.core.waiting import wait_until
 from course_helpers.nodes import Listener, Talker, make_relay
 from course_helpers.viz.graph import (
     REFRESHER_THREAD_NAME,
@@ -290,7 +291,8 @@ def test_live_graph_never_restarts_a_stopped_runtime(rt):
         rt.wait_until(lambda: view.controller.snapshot is not None, 10, "a first picture")
         rt.stop()
         rt.wait_until(lambda: "runtime stopped" in view.status.value, 5, "the view to notice")
-        time.sleep(0.5)  # several refresh periods
+        looked = view.controller.refreshes
+        wait_until(lambda: view.controller.refreshes >= looked + 3, 10, "three more refreshes")
         assert not rt.running
     finally:
         view.close()

@@ -23,7 +23,9 @@ def test_recreating_a_node_by_name_leaves_one_node(rt):
     second = rt.add(Talker, rate_hz=20)
     assert first is not second
     rt.wait_until(lambda: rt.graph_nodes().count("/talker") == 1, 5, "one /talker")
-    time.sleep(0.5)  # give discovery time to show a leftover, if there were one
+    # no window needed: this process's own nodes enter and leave its graph cache in rmw_create_node
+    # and rmw_destroy_node themselves (rmw_fastrtps: add_node_graph / remove_node_graph of
+    # rmw_dds_common's context), so a leftover would be listed now
     names = [n for n, _ in rt.graph.get_node_names_and_namespaces() if n == "talker"]
     assert names == ["talker"]
     assert rt.nodes() == ["/talker"]
@@ -84,15 +86,17 @@ def test_two_processes_with_automatic_domains_do_not_see_each_other(rt):
         rt = get_runtime()
         rt.add(Talker, name="talker_there")
         print("domain", rt.domain.domain_id)
-        time.sleep(2.0)
+        # a sentinel: a node in a process started now, seen here, was discovered after the other
+        # process's /talker_here (up long before) would have been, were it in this domain
+        rt.spawn("sentinel", "course_helpers.nodes:make_talker", params={"name": "sentinel_there"},
+                 wait_for="/sentinel_there")
         print("seen", rt.graph_nodes())
         rt.stop()
     """)
     assert result.returncode == 0, result.stderr
     other_domain = int(result.stdout.split("domain ")[1].split()[0])
     assert other_domain != rt.domain.domain_id
-    assert "/talker_here" not in result.stdout
-    assert "/talker_there" not in rt.graph_nodes()
+    assert "/sentinel_there" in result.stdout and "/talker_here" not in result.stdout
 
 
 def test_child_process_node_is_reaped(rt):

@@ -32,6 +32,7 @@ class _LiveGraphController:
         self._last_key = None
         self.snapshot: GraphSnapshot | None = None  # the graph last drawn
         self.redraws = 0
+        self.refreshes = 0  # looks at the graph so far, drawn or not (a test waits for a few)
         self.thread = threading.Thread(target=self._loop, name=REFRESHER_THREAD_NAME, daemon=True)
 
     def start(self):
@@ -61,6 +62,7 @@ class _LiveGraphController:
             self._wake.clear()
 
     def refresh(self) -> None:
+        self.refreshes += 1
         # Never go through rt.graph here: it would start a runtime that the notebook stopped.
         graph, domain = self.rt.graph_if_running(), getattr(self.rt, "domain", None)
         if graph is None or domain is None:
