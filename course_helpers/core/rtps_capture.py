@@ -114,12 +114,14 @@ class Submessage:
     count: int | None = None
     endpoint: str = ""
     topic: str = ""
+    alive: bool = True
 
     @property
     def name(self) -> str:
-        """Wireshark's name: DATA(p), DATA(w), DATA(r) for discovery, else the kind."""
-        if self.kind == "DATA":
-            return DISCOVERY_NAMES.get(self.writer, "DATA")
+        """Wireshark's name: DATA(p), DATA(w), DATA(r) for discovery ([UD] when leaving), else the kind."""
+        if self.kind == "DATA" and self.writer in DISCOVERY_NAMES:
+            name = DISCOVERY_NAMES[self.writer]
+            return name if self.alive else name[:-1] + "[UD])"
         return self.kind
 
     @property
@@ -340,6 +342,8 @@ def _fields(kind: str, tree: dict) -> dict:
         fields["seq"] = seqs[0] if seqs else None
         fields["endpoint"] = _prefix(_find(tree, "rtps.param.endpoint_guid"))
         fields["topic"] = str(_find(tree, "rtps.param.topicName") or "")
+        status = _find(tree, "rtps.param.status_info")  # PID_STATUS_INFO: 1 disposed, 2 unregistered
+        fields["alive"] = not (status and int(str(status), 16) & 0x3)
     elif kind == "HEARTBEAT" and len(seqs) >= 2:
         fields.update(first=seqs[0], last=seqs[1], count=_int(tree.get("rtps.heartbeat_count")))
     elif kind in ("ACKNACK", "GAP"):
