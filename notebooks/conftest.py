@@ -11,8 +11,9 @@ worker (the cells also carry an xdist_group mark, which pytest 9 no longer lets 
 Cells that need an optional part of the machine start with a line ``# COURSE_NEEDS: <part>``
 (``ros1``: ROS 1's rospy and rosmaster for the system Python; ``netns``: private network
 namespaces; ``cyclonedds``: Eclipse Cyclone DDS's Python binding; ``tshark``: Wireshark's
-``tshark`` and ``dumpcap``). A cell may name several parts, one line each. Where that part is missing, those cells (and only those) are skipped, with the
-one-line reason the course gives (``pytest -rs`` lists it). In a notebook they print that line.
+``tshark`` and ``dumpcap``). A cell may name several parts, one line each. Where a part is missing,
+those cells (and only those) are skipped, with the one-line reason the course gives, which names the
+install (``pytest -rs`` lists it). In a notebook they print that line.
 """
 
 from __future__ import annotations

@@ -60,6 +60,7 @@ from course_helpers.chapters.ch07_dds.discovery_wire import (
     DiscoveryCount,
     count_discovery,
     discovery_table,
+    discovery_wire_unavailable_reason,
 )
 from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
 from course_helpers.chapters.ch07_dds.machines import LinkResult, link_table, two_machines

@@ -58,13 +58,14 @@ def cyclone_unavailable_reason() -> str | None:
 
 def cyclone_config(max_index: int = PEER_IDS - 1) -> str:
     """The Cyclone DDS configuration (XML) that finds the course's participants (module docstring)."""
-    return ('<CycloneDDS><Domain Id="any">'
-            '<General><Interfaces><NetworkInterface name="lo"/></Interfaces>'
-            "<AllowMulticast>false</AllowMulticast></General>"
-            "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-            f"<MaxAutoParticipantIndex>{int(max_index)}</MaxAutoParticipantIndex>"
-            f'<Peers><Peer address="{PEER_ADDRESS}"/></Peers></Discovery>'
-            "</Domain></CycloneDDS>")
+    return "\n".join([
+        '<CycloneDDS><Domain Id="any">',
+        '  <General><Interfaces><NetworkInterface name="lo"/></Interfaces>',
+        "           <AllowMulticast>false</AllowMulticast></General>",
+        "  <Discovery><ParticipantIndex>auto</ParticipantIndex>",
+        f"             <MaxAutoParticipantIndex>{int(max_index)}</MaxAutoParticipantIndex>",
+        f'             <Peers><Peer address="{PEER_ADDRESS}"/></Peers></Discovery>',
+        "</Domain></CycloneDDS>"])
 
 
 def cyclone_domain(rt) -> int:

@@ -56,6 +56,11 @@ START_TIMEOUT_S = 20.0  # a child's start (Python, rclpy) and its discovery
 GRAPH_ROLES = 2  # the writer and reader of ros_discovery_info, one pair per participant
 
 
+def discovery_wire_unavailable_reason() -> str | None:
+    """None if discovery can be captured here; else one line: what is missing and how to get it."""
+    return rtps_capture.unavailable_reason() or netns.unavailable_reason()
+
+
 def endpoint_counts(node: Node, fqn: str) -> dict | None:
     """What node ``fqn`` publishes, subscribes, serves and calls, as ``node``'s graph lists it (None
     while the graph does not know it)."""
@@ -155,7 +160,7 @@ def count_discovery(setting: str = "simple") -> DiscoveryCount:
     """
     if setting not in SETTINGS:
         raise CourseError(f"setting must be one of {', '.join(map(repr, SETTINGS))}, got {setting!r}")
-    reason = rtps_capture.unavailable_reason() or netns.unavailable_reason()
+    reason = discovery_wire_unavailable_reason()
     if reason is not None:
         raise CourseError(f"counting discovery on the wire needs tshark and a network namespace: {reason}")
     rt = get_runtime()  # its domain is the children's: they inherit ROS_DOMAIN_ID

@@ -18,12 +18,13 @@ How Fast DDS 2.14 repairs a lost sample (``StatefulWriter``, ``StatefulReader``,
 * a best-effort reader acknowledges nothing, and a best-effort writer sends nothing twice.
 
 So each repaired sample has, in this order: a HEARTBEAT that reached the reader, an ACKNACK naming
-the sample that reached the writer, and a copy of the sample that arrived (:class:`Repair`, picked
-as the last of each before the next). The HEARTBEAT's range need not reach the lost number: the
-reader also learns that a number is missing when a later sample arrives. How long a repair takes
-is mostly the wait for the next HEARTBEAT (the link's writers send one every ``HEARTBEAT_S``, and
-piggy-back one on data when their history is full or a send buffer's worth has gone out): a
-measurement, printed, never asserted.
+the sample that reached the writer, and a copy of the sample that arrived (:class:`Repair`). A
+second HEARTBEAT may make the reader ask again while the copy is on its way, so the ACKNACK taken is
+the first after the last lost copy: the one that started the writer's ``nackResponseDelay``. The
+HEARTBEAT's range need not reach the lost number: the reader also learns that a number is missing
+when a later sample arrives. How long a repair takes is mostly the wait for the next HEARTBEAT (the
+link's writers send one every ``HEARTBEAT_S``, and piggy-back one on data when their history is full
+or a send buffer's worth has gone out): a measurement, printed, never asserted.
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ CAPTURE_LABEL = "qos_lab_capture"
 COUNTED = ("DATA", "HEARTBEAT", "ACKNACK", "GAP")
 HEARTBEAT_RESPONSE_DELAY_S = 0.005  # Fast DDS 2.14 ReaderTimes default (the link's profile keeps it)
 NACK_RESPONSE_DELAY_S = 0.005  # Fast DDS 2.14 WriterTimes default (the link's profile keeps it)
+# The capture stamps datagrams with the real-time clock, Fast DDS's timers run on the monotonic one:
+# a bound on a capture interval allows this much for the two clocks' difference (NTP slews by 0.05 %)
+CLOCKS_TOLERANCE_S = 0.0002
 
 
 def wire_unavailable_reason() -> str | None:
@@ -54,9 +58,10 @@ def wire_unavailable_reason() -> str | None:
 class Repair:
     """How one lost sample came back: the copies the link dropped, then HEARTBEAT -> ACKNACK -> DATA.
 
-    ``heartbeat``: the writer's last HEARTBEAT that reached the reader before ``acknack``;
-    ``acknack``: the reader's last ACKNACK naming ``seq`` that reached the writer before ``resent``;
-    ``resent``: the first copy of the sample that arrived. None where a link is missing.
+    ``resent``: the first copy of the sample that arrived; ``acknack``: the ACKNACK that asked for it,
+    the first naming ``seq`` that reached the writer after the last lost copy (if the capture shows none
+    there, the last one before ``resent``); ``heartbeat``: the writer's last HEARTBEAT that reached the
+    reader before that ACKNACK (the one whose response timer sent it). None where a link is missing.
     """
 
     seq: int
@@ -79,6 +84,12 @@ class Repair:
     def waited_s(self) -> float:
         """From the first lost copy to the copy that arrived (the capture's clock)."""
         return self.resent.time - self.lost[0].time
+
+    @property
+    def no_sooner_than_the_writer_answers(self) -> bool:
+        """True when the copy came at least ``nackResponseDelay`` after the first lost one: the reader can
+        ask only once the sample was sent, and the writer answers that much after the request."""
+        return self.waited_s >= NACK_RESPONSE_DELAY_S - CLOCKS_TOLERANCE_S
 
 
 @dataclass
@@ -112,7 +123,10 @@ class WireRun:
             if arrived is None:
                 continue
             lost = tuple(s for s in copies if s.dropped and s.frame < arrived.frame)
-            acknack = _last(self.submessages, arrived.frame, "ACKNACK", lambda s, n=seq: n in s.numbers)
+            asked = [s for s in self.submessages if s.kind == "ACKNACK" and not s.dropped and seq in s.numbers
+                     and s.frame < arrived.frame]
+            after_loss = [s for s in asked if s.frame > lost[-1].frame]
+            acknack = after_loss[0] if after_loss else (asked[-1] if asked else None)
             heartbeat = None
             if acknack is not None:
                 heartbeat = _last(self.submessages, acknack.frame, "HEARTBEAT",
