@@ -45,7 +45,7 @@ from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
 TOOLS = ("dumpcap", "tshark")
-INSTALL = "sudo apt-get install tshark (Debian and Ubuntu: Wireshark's command-line tools, dumpcap with them)"
+INSTALL = "sudo apt-get install tshark (Wireshark's command-line tools; dumpcap comes with them)"
 GROUP = "capture"  # the process-layer group of the dumpcap children
 READY_TEXT = "Capturing on"  # what dumpcap prints once it captures
 READY_TIMEOUT_S = 10.0
