@@ -23,9 +23,10 @@ course's hidden keeper node, which has no endpoints.
 
 ``setting='discovery server'`` starts eProsima's discovery server in the namespace first and makes
 both nodes its clients (``ROS_DISCOVERY_SERVER``); the observer is a *super client*
-(``ROS_SUPER_CLIENT=TRUE``, as ROS 2's command-line tools are), which the server tells about every
-endpoint, not only those matching its own topics. Then the newcomer announces itself to the server
-alone, and the observer learns the newcomer's endpoints from the server.
+(``ROS_SUPER_CLIENT=TRUE``, which ROS 2's command-line tools need to see everything), which the
+server tells about every endpoint, not only those matching its own topics. Then the newcomer
+announces itself to the server alone, and the observer learns the newcomer's endpoints from the
+server.
 """
 
 from __future__ import annotations

@@ -48,7 +48,7 @@ def _arrow(ax, t_ms: float, upward: bool, colour: str, dropped: bool, width: flo
 
 def _lanes(ax, title: str, start_ms: float, end_ms: float) -> None:
     ax.set_yticks([READER_Y, WRITER_Y], ["reader\n(subscriber)", "writer\n(publisher)"])
-    ax.set_ylim(-1.4, 2.4)
+    ax.set_ylim(-1.8, 2.4)
     ax.set_xlim(start_ms, end_ms)  # arrows (annotations) do not widen the axes by themselves
     ax.axhline(WRITER_Y, color="black", lw=0.6)
     ax.axhline(READER_Y, color="black", lw=0.6)
@@ -85,7 +85,8 @@ def draw_repair(ax, run: WireRun, repair: Repair) -> None:
     if repair.acknack is not None:
         ack = repair.acknack
         _arrow(ax, (ack.time - t0) * 1e3, True, COLOURS["ACKNACK"], False, 2.0)
-        _label(ax, (ack.time - t0) * 1e3, False, f"ACKNACK: {_numbers(ack.numbers)}", COLOURS["ACKNACK"])
+        others = f" +{len(ack.numbers) - 1}" if len(ack.numbers) > 1 else ""  # the other numbers it asks for
+        _label(ax, (ack.time - t0) * 1e3, False, f"ACKNACK for {repair.seq}{others}", COLOURS["ACKNACK"])
     _arrow(ax, (repair.resent.time - t0) * 1e3, False, COLOURS["arrived"], False, 2.0)
     _label(ax, (repair.resent.time - t0) * 1e3, True, f"DATA {repair.seq} again", COLOURS["arrived"])
     _lanes(ax, f"{run.config.describe()}: sample {repair.seq} repaired after "
@@ -111,11 +112,6 @@ def draw_gap(ax, run: WireRun, seq: int | None = None) -> None:
     window_ms = BEST_EFFORT_WINDOW_S * 1e3
     _lanes(ax, f"{run.config.describe()}: sample {lost[0]} never sent again "
                f"({heartbeats} HEARTBEATs and {acknacks} ACKNACKs in the whole run)", -window_ms, window_ms)
-
-
-def _numbers(numbers: tuple[int, ...]) -> str:
-    shown = ", ".join(str(n) for n in numbers[:4])
-    return shown + (f" (+{len(numbers) - 4})" if len(numbers) > 4 else "")
 
 
 def draw_repair_timeline(reliable: WireRun, best_effort: WireRun | None = None, seq: int | None = None,
