@@ -165,6 +165,8 @@ class Capture:
         finally:
             processes.stop([self.child.label], group=GROUP)
             self.child.stop()
+            if self.dropped_group is not None and self.namespace.alive:  # the marker rule goes too
+                self.namespace.run("nft", f"delete table inet {MARKER_TABLE}", check=False)
         return self.path
 
     def _mark_end(self) -> None:
