@@ -14,13 +14,15 @@
 FROM debian:bookworm-slim
 
 # The README's system packages (compiler, CMake, venv) and make; tini, the container's init, reaps
-# kernels' children. For a later chapter: Debian's ROS 1 (rospy, the master, rosnode, rostopic) and
-# the network tools ip and nft.
-RUN apt-get update \
+# kernels' children. For later chapters: Debian's ROS 1 (rospy, the master, rosnode, rostopic), the
+# network tools ip and nft, and Wireshark's tshark and dumpcap (RTPS on the wire, 07b and 08c; the
+# student runs dumpcap inside a user namespace of the course, so it needs no setuid bit).
+RUN echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections \
+ && apt-get update \
  && DEBIAN_FRONTEND=noninteractive apt-get install --yes --no-install-recommends \
       build-essential cmake make python3-venv python3-dev ca-certificates tini \
       python3-rospy python3-rosmaster python3-std-msgs python3-rosnode python3-rostopic \
-      iproute2 nftables \
+      iproute2 nftables tshark \
  && rm -rf /var/lib/apt/lists/*
 
 # The student, as in jupyter/docker-stacks: jovyan, uid 1000, group users (100).

@@ -10,8 +10,10 @@ worker (the cells also carry an xdist_group mark, which pytest 9 no longer lets 
 
 Cells that need an optional part of the machine start with a line ``# COURSE_NEEDS: <part>``
 (``ros1``: ROS 1's rospy and rosmaster for the system Python; ``netns``: private network
-namespaces). Where that part is missing, those cells (and only those) are skipped, with the
-one-line reason the course gives (``pytest -rs`` lists it). In a notebook they print that line.
+namespaces; ``cyclonedds``: Eclipse Cyclone DDS's Python binding; ``tshark``: Wireshark's
+``tshark`` and ``dumpcap``). A cell may name several parts, one line each. Where a part is missing,
+those cells (and only those) are skipped, with the one-line reason the course gives, which names the
+install (``pytest -rs`` lists it). In a notebook they print that line.
 """
 
 from __future__ import annotations
@@ -37,7 +39,20 @@ def _reason_netns() -> str | None:
     return unavailable_reason()
 
 
-NEEDS = {"ros1": _reason_ros1, "netns": _reason_netns}
+def _reason_cyclonedds() -> str | None:
+    from course_helpers.chapters.ch07_dds.cyclone import cyclone_unavailable_reason
+
+    return cyclone_unavailable_reason()
+
+
+def _reason_tshark() -> str | None:
+    from course_helpers.core.rtps_capture import unavailable_reason
+
+    return unavailable_reason()
+
+
+NEEDS = {"ros1": _reason_ros1, "netns": _reason_netns, "cyclonedds": _reason_cyclonedds,
+         "tshark": _reason_tshark}
 
 
 def needs_of(source: str) -> list[str]:

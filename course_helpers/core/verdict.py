@@ -3,8 +3,9 @@
 Every verdict a user meets (a test, a checker's criterion, a notebook's claim) is one of two kinds.
 
 * **By construction** (:func:`judge`): what the mechanism guarantees on any machine, such as "a
-  reliable reader got every sample" or "a repaired sample arrived at least one heartbeat period after
-  its first send". It passes or fails, whatever the load.
+  reliable reader got every sample" or "a repaired sample came after a HEARTBEAT and an ACKNACK that
+  named it" (not "a heartbeat period after its first send": the next HEARTBEAT may follow the loss at
+  once, notebook 08c). It passes or fails, whatever the load.
 * **Timing** (:func:`judge_timing`): a measurement against a bound that a busy machine can only push
   toward failing, such as "a node in a new process is seen within 0.5 s". The measurement runs under a
   :class:`~course_helpers.core.machine_load.LoadMeter`:

@@ -7,6 +7,11 @@ well. Like ``ros2 node list`` and rqt_graph, a snapshot hides infrastructure unl
 (``include_hidden=True``): nodes whose name starts with ``_``, names with a part starting with
 ``_`` (the ``/_action/`` topics and services behind every action), ``/rosout``,
 ``/parameter_events`` and each node's parameter and type-description services.
+
+A DDS program without ROS (chapter 07b's Cyclone DDS participant) has endpoints on ROS topics but
+no node: rmw lists them under the node name ``_CREATED_BY_BARE_DDS_APP_``. A snapshot shows each
+such participant as one box of its own, named by its vendor and GUID prefix
+(``[Eclipse Cyclone DDS 01.10.0d.22]``), with its writers and readers as edges.
 """
 
 from __future__ import annotations
@@ -18,10 +23,12 @@ from rclpy.action.graph import (
     get_action_server_names_and_types_by_node,
 )
 
+from course_helpers.core.dds_vendors import gid_prefix, gid_vendor
 from course_helpers.core.errors import CourseError
 from course_helpers.core.names import full_name
 
 HIDDEN_TOPICS = frozenset({"/rosout", "/parameter_events"})
+BARE_DDS_NODE = "_CREATED_BY_BARE_DDS_APP_"  # rmw's node name for an endpoint that no ROS node owns
 # Services every node offers for its parameters and interface descriptions.
 INFRASTRUCTURE_SERVICES = frozenset({
     "describe_parameters", "get_parameter_types", "get_parameters", "list_parameters",
@@ -107,6 +114,11 @@ def is_hidden_service(name: str) -> bool:
     return parts[-1] in INFRASTRUCTURE_SERVICES or any(p.startswith("_") for p in parts)
 
 
+def bare_participant_name(gid) -> str:
+    """The box of a participant without ROS nodes: its vendor and the start of its GUID prefix."""
+    return f"[{gid_vendor(gid)} {gid_prefix(gid)[:11]}]"
+
+
 def resolve_runtime(rt):
     if rt is None:
         from course_helpers.core.runtime import get_runtime
@@ -172,6 +184,9 @@ def snapshot_of(graph, domain_id: int | None = None, include_hidden: bool = Fals
         collect(lambda n, ns: get_action_server_names_and_types_by_node(graph, n, ns), name, namespace,
                 "server", "action", lambda _a: False, action_types, action_edges)
 
+    for topic, _types in graph.get_topic_names_and_types():
+        if include_hidden or not is_hidden_topic(topic):
+            _collect_bare_dds(graph, topic, nodes, topic_types, edges)
     snap.nodes = sorted(nodes)
     snap.topics = {t: sorted(types) for t, types in sorted(topic_types.items())}
     snap.edges = sorted(edges)
@@ -180,3 +195,21 @@ def snapshot_of(graph, domain_id: int | None = None, include_hidden: bool = Fals
     snap.actions = {a: sorted(types) for a, types in sorted(action_types.items())}
     snap.action_edges = sorted(action_edges)
     return snap
+
+
+def _collect_bare_dds(graph, topic: str, nodes: set, topic_types: dict, edges: set) -> None:
+    """Add the writers and readers of ``topic`` that no ROS node owns, one box per participant."""
+    for query, role in ((graph.get_publishers_info_by_topic, "publisher"),
+                        (graph.get_subscriptions_info_by_topic, "subscriber")):
+        try:
+            infos = query(topic)
+        except Exception:  # the topic left the graph meanwhile
+            continue
+        for info in infos:
+            if info.node_name != BARE_DDS_NODE:
+                continue
+            box = bare_participant_name(info.endpoint_gid)
+            nodes.add(box)
+            topic_types.setdefault(topic, set()).add(info.topic_type)
+            edges.add(Edge(box, topic, info.topic_type, "topic", role) if role == "publisher"
+                      else Edge(topic, box, info.topic_type, "topic", role))

@@ -14,7 +14,9 @@
 * :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;
 * :mod:`.middleware` - the active and the installed rmw implementations;
 * :mod:`.transports` - one message bounced in one process, over shared memory and over UDP;
-* :mod:`.security` - what rcl and Fast DDS do when a node asks for DDS security.
+* :mod:`.security` - what rcl and Fast DDS do when a node asks for DDS security;
+* :mod:`.cyclone` - another vendor, Eclipse Cyclone DDS, in the kernel's domain (notebook 07b);
+* :mod:`.discovery_wire` - one node's SPDP and SEDP messages, captured and counted (notebook 07b).
 
 The notebook uses ``from course_helpers.chapters import ch07_dds as dds`` and ``dds.<name>``.
 """
@@ -28,6 +30,13 @@ from course_helpers.chapters.ch07_dds.communication_models import (
     compare_models,
     plot_models,
     simulate_model,
+)
+from course_helpers.chapters.ch07_dds.cyclone import (
+    close_cyclone,
+    cyclone_config,
+    cyclone_domain,
+    cyclone_participants,
+    cyclone_unavailable_reason,
 )
 from course_helpers.chapters.ch07_dds.discovery import (
     DiscoveryAnchor,
@@ -46,6 +55,12 @@ from course_helpers.chapters.ch07_dds.discovery_settings import (
     listen_to_announcements,
     measure_announcements,
     plot_discovery,
+)
+from course_helpers.chapters.ch07_dds.discovery_wire import (
+    DiscoveryCount,
+    count_discovery,
+    discovery_table,
+    discovery_wire_unavailable_reason,
 )
 from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
 from course_helpers.chapters.ch07_dds.machines import LinkResult, link_table, two_machines

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from course_helpers.core.dds_vendors import gid_prefix, gid_vendor
 from course_helpers.core.names import is_hidden
 
 PREFIXES = {
@@ -87,7 +88,7 @@ def show_dds_entities(rows: list[DdsEntity]) -> None:
 
 def guid_prefix(gid) -> str:
     """The participant part (first 12 bytes) of an endpoint GUID (bytes or a list of ints), as dotted hex."""
-    return ".".join(f"{b:02x}" for b in bytes(gid)[:12])
+    return gid_prefix(gid)
 
 
 def guid_process_id(gid) -> int:
@@ -97,7 +98,5 @@ def guid_process_id(gid) -> int:
 
 
 def guid_vendor(gid) -> str:
-    """The DDS vendor in the first two bytes of a GUID (01.0f is eProsima)."""
-    raw = bytes(gid)
-    vendors = {(1, 15): "eProsima Fast DDS", (1, 16): "Eclipse Cyclone DDS", (1, 1): "RTI Connext DDS"}
-    return vendors.get((raw[0], raw[1]), f"vendor {raw[0]:02x}.{raw[1]:02x}")
+    """The DDS vendor in the first two bytes of a GUID (01.0f is eProsima, 01.10 Eclipse Cyclone DDS)."""
+    return gid_vendor(gid)

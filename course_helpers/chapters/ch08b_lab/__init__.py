@@ -8,7 +8,9 @@
   :func:`link_unavailable_reason` where it cannot be made;
 * ``results``: :class:`Snapshot` and :class:`ExperimentResult`;
 * ``plots``: :func:`draw_results` and the live :class:`ResultsFigure`;
-* ``panel``: :func:`qos_lab`, the widget panel; ``table``: its results table.
+* ``panel``: :func:`qos_lab`, the widget panel; ``table``: its results table;
+* ``wire``: a run on the lossy link captured and its repairs read from RTPS (notebook 08c), ``wire_plot``:
+  their timeline (imported as modules: ``from course_helpers.chapters.ch08b_lab import wire``).
 """
 
 from __future__ import annotations

@@ -45,9 +45,12 @@ def link_unavailable_reason() -> str | None:
     return netns.unavailable_reason()
 
 
-def lossy_link(loss_percent: int = 0, link_mbit: float = 0.0) -> netns.NetworkNamespace:
+def lossy_link(loss_percent: int = 0, link_mbit: float = 0.0, log_group: int | None = None
+               ) -> netns.NetworkNamespace:
     """The kernel's lossy link (made on first use), set to drop ``loss_percent`` % of the UDP datagrams
     sent to odd (data) ports and, with ``link_mbit`` > 0, to carry at most that many Mbit/s.
+    With ``log_group``, each dropped datagram is also logged to that netfilter log group, one at a
+    time (``queue-threshold 1``), where a capture reads it (:mod:`course_helpers.core.rtps_capture`).
 
     Raises CourseError (with the one-line reason) where namespaces cannot be made.
     """
@@ -59,9 +62,10 @@ def lossy_link(loss_percent: int = 0, link_mbit: float = 0.0) -> netns.NetworkNa
     link = _link[0]
     rules = [f"flush table inet {NFT_TABLE}" if _has_table(link) else f"add table inet {NFT_TABLE}"]
     if loss_percent:
+        log = f"log group {int(log_group)} queue-threshold 1 " if log_group is not None else ""
         rules += [f"add chain inet {NFT_TABLE} input {{ type filter hook input priority 0; policy accept; }}",
                   f"add rule inet {NFT_TABLE} input udp dport & 1 == 1 numgen random mod 100 < "
-                  f"{int(loss_percent)} drop"]  # odd ports: user traffic (see the module docstring)
+                  f"{int(loss_percent)} {log}drop"]  # odd ports: user traffic (see the module docstring)
     link.run("nft", "; ".join(rules))
     if link_mbit:
         burst = max(MIN_BURST_BYTES, int(link_mbit * 1e6 / 8 / 100))  # 10 ms of traffic, at least

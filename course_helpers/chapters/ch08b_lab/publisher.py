@@ -5,7 +5,9 @@ memory or UDP); inside one process Fast DDS would hand samples over intra-proces
 nothing could be lost. It tells the kernel how far it is over the process channel:
 ``report('progress', ...)`` when it starts sending and about every 0.1 s, and
 ``report('summary', ...)`` once it is done, then ``report('acked')`` once every reader has
-acknowledged every sample (at once for best-effort, which has no acknowledgements).
+acknowledged every sample (at once for best-effort, which has no acknowledgements). Before its
+first sample it reports ``report('writer', gid=...)``: its DDS writer's GUID, which a capture of
+the run finds in every RTPS submessage of that writer (chapter 08c).
 """
 
 from __future__ import annotations
@@ -103,6 +105,7 @@ class LabPublisher(Node):
             self.start()
 
     def start(self) -> None:
+        report("writer", gid=self.writer_gid())
         self.started_ns = time.monotonic_ns()
         report("progress", **self.counts(0.0))
         self.timer.reset()
@@ -131,6 +134,13 @@ class LabPublisher(Node):
         elif time.monotonic() - self.last_report > PROGRESS_PERIOD_S:
             self.last_report = time.monotonic()
             report("progress", **self.counts(elapsed_s))
+
+    def writer_gid(self) -> str:
+        """This publisher's DDS writer GUID, 32 hex digits, as its own participant's graph lists it."""
+        for info in self.get_publishers_info_by_topic(self.publisher.topic_name):
+            if (info.node_name, info.node_namespace) == (self.get_name(), self.get_namespace()):
+                return bytes(info.endpoint_gid).hex()
+        return ""
 
     def check_acked(self) -> None:
         """Report once when every matched reader has acknowledged every sample (no waiting here)."""

@@ -54,6 +54,7 @@ class ExperimentResult:
     timeline: list[Snapshot] = field(default_factory=list, repr=False)
     end_reason: str = ""  # with samples in flight: why the run ended before they arrived
     machine: MachineLoad | None = None  # what else used the machine during the run
+    writer_gid: str = ""  # the publisher's DDS writer GUID (32 hex digits), as it reported it
 
     @property
     def finished(self) -> bool:

@@ -64,7 +64,7 @@ _run_counter = 0
 
 
 def run_experiment(config: ExperimentConfig, progress=None, stop_event: threading.Event | None = None,
-                   progress_period_s: float = 0.1) -> ExperimentResult:
+                   progress_period_s: float = 0.1, drop_log_group: int | None = None) -> ExperimentResult:
     """Run one real experiment and return what it measured.
 
     Args:
@@ -74,6 +74,8 @@ def run_experiment(config: ExperimentConfig, progress=None, stop_event: threadin
         stop_event: setting it ends the run: the publisher's process is stopped within a
             second and the result has ``stopped=True``.
         progress_period_s: seconds between snapshots (> 0).
+        drop_log_group: on the lossy link, also log each datagram it drops to this netfilter log
+            group (a capture of the run reads it: chapter 08c).
 
     Returns:
         An :class:`ExperimentResult`; its ``timeline`` holds every snapshot and a final one.
@@ -88,7 +90,7 @@ def run_experiment(config: ExperimentConfig, progress=None, stop_event: threadin
         raise CourseError("another QoS lab experiment is running in this kernel; stop it first "
                           "(the panel's Stop button, or set its stop_event).")
     try:
-        return _run(config, progress, stop_event or threading.Event(), progress_period_s)
+        return _run(config, progress, stop_event or threading.Event(), progress_period_s, drop_log_group)
     finally:
         _run_lock.release()
 
@@ -108,6 +110,7 @@ class _RunState:
     cut_short: bool = False
     end_reason: str = ""  # why the run ended with samples still to come ('' when it did not)
     timeline: list = field(default_factory=list)
+    writer_gid: str = ""  # the publisher's 'writer' report
 
     def add_subscriber(self, rt, joins_before_first_sample: bool) -> None:
         c = self.config
@@ -116,7 +119,7 @@ class _RunState:
 
 
 def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
-         period_s: float) -> ExperimentResult:
+         period_s: float, drop_log_group: int | None) -> ExperimentResult:
     global _run_counter
     _run_counter += 1
     rt = get_runtime()
@@ -124,7 +127,9 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
     run = _RunState(config, topic=f"/qos_lab/run_{os.getpid()}_{_run_counter}")
     wall_start = time.monotonic()
     meter = LoadMeter()
-    link = lossy_link(config.loss_percent, config.link_mbit) if config.transport == "lossy_link" else None
+    link = None
+    if config.transport == "lossy_link":
+        link = lossy_link(config.loss_percent, config.link_mbit, log_group=drop_log_group)
     counter_pid = link.pid if link is not None else "self"  # whose loopback interface carries the samples
     lo_start = loopback_bytes(counter_pid)
     child = None
@@ -165,6 +170,7 @@ def _run(config: ExperimentConfig, progress, stop_event: threading.Event,
             rt.stop_child(CHILD_LABEL)
             if run.summary is None:  # stopped early: what the child had reported until then
                 run.progress_line, run.summary = child.last("progress"), child.last("summary")
+            run.writer_gid = (child.last("writer") or {}).get("gid", "")
         if isinstance(run.sub, RemoteSubscriber):
             run.sub.finish()
         elif run.sub is not None:
@@ -322,5 +328,5 @@ def _result(config, run, wall_s, lo_bytes, machine) -> ExperimentResult:
         send_time_s=float(report.get("elapsed_s", 0.0)), wall_time_s=wall_s, loopback_bytes=lo_bytes,
         stopped=run.stopped, first_error=report.get("first_error", ""),
         first_seq=sub.first_seq if sub is not None else None, timeline=[*run.timeline, final],
-        end_reason=run.end_reason if in_flight else "", machine=machine)
+        end_reason=run.end_reason if in_flight else "", machine=machine, writer_gid=run.writer_gid)
 
