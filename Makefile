@@ -30,7 +30,7 @@ UNIT   := tests --ignore=tests/test_image.py
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade grade-all clean \
+.PHONY: setup lab test unit logic timing notebooks soak durations lint bench execute book test-pythons release grade grade-all clean \
         image test-image
 .DEFAULT_GOAL := lab
 
@@ -61,18 +61,24 @@ lab: setup
 
 # -rfEs: every failure, error and skipped test is listed at the end, a skip with its reason (what is
 # missing and how to get it).
+# The three stages, in this order: the logic tests, the tests marked 'timing', the notebooks.
+# PYTEST_EXTRA is added to each stage's pytest (benchmarks/soak.py passes --junitxml).
+PYTEST_EXTRA ?=
 test: setup
-	$(PY) -m pytest $(UNIT) -m "not timing" -q -rfEs $(XDIST)
-	$(PY) -m pytest $(UNIT) -m timing -q -rfEs $(TIMING_XDIST)
-	$(PY) -m pytest $(NBVAL) $(NB_XDIST) notebooks -q -rfEs
+	@$(MAKE) --no-print-directory logic timing notebooks
 
 unit: setup
-	$(PY) -m pytest $(UNIT) -m "not timing" -q -rfEs $(XDIST)
-	$(PY) -m pytest $(UNIT) -m timing -q -rfEs $(TIMING_XDIST)
+	@$(MAKE) --no-print-directory logic timing
+
+logic: setup
+	$(PY) -m pytest $(UNIT) -m "not timing" -q -rfEs $(XDIST) $(PYTEST_EXTRA)
+
+timing: setup
+	$(PY) -m pytest $(UNIT) -m timing -q -rfEs $(TIMING_XDIST) $(PYTEST_EXTRA)
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
-	$(PY) -m pytest $(NBVAL) $(NB_XDIST) notebooks -q -rfEs
+	$(PY) -m pytest $(NBVAL) $(NB_XDIST) notebooks -q -rfEs $(PYTEST_EXTRA)
 
 # Measure both stages and record each file's seconds in tests/durations.json (the order above).
 durations: setup
@@ -82,6 +88,14 @@ durations: setup
 
 lint: setup
 	$(VENV)/bin/ruff check course_helpers tests benchmarks tools notebooks book classroom
+
+# The stages N times (RUNS, default 3) beside BUSY CPU-bound processes (default 0): pass counts, every
+# failure with its message, each stage's times (benchmarks/soak.py; STAGES picks some).
+RUNS ?= 3
+BUSY ?= 0
+STAGES ?= logic timing notebooks
+soak: setup
+	$(PY) -m benchmarks.soak --runs $(RUNS) --busy $(BUSY) --stages $(STAGES)
 
 bench: setup
 	$(PY) benchmarks/executor_throughput.py
