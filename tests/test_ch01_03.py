@@ -61,6 +61,9 @@ def test_transports_show_shared_memory_and_unicast_ports(rt):
     meanings = [meaning for _port, meaning in transports.udp_ports]
     assert any(m.startswith("discovery, unicast") for m in meanings), meanings
     assert any(m.startswith("user data, unicast") for m in meanings), meanings
+    # every socket has a name: the graph's own reader listens on a port of its own (7000-7399)
+    assert meanings.count("graph updates (ros_discovery_info), a port of their own") == 1, meanings
+    assert not [m for m in meanings if m.startswith("another")], meanings
 
 
 def test_port_classification_follows_the_rtps_mapping():
@@ -221,3 +224,6 @@ def test_bandwidth_grows_with_message_size(rt):
         lambda samples: all(s.sent_hz > 10 and s.received_hz > 0.8 * s.sent_hz for s in samples)
         and samples[1].bytes_per_s > 100 * samples[0].bytes_per_s)
     assert math.isclose(large.bytes_per_s / large.received_hz, large.wire_bytes, rel_tol=0.01)
+    # the same messages on both sides: what arrived of those sent in the window, never more
+    rates = [(s.sent_hz, s.received_hz) for s in (small, large)]
+    assert all(received <= sent for sent, received in rates), rates

@@ -144,6 +144,12 @@ class Transports:
         return sorted({address for address, _port, _meaning in self.udp_sockets})
 
 
+# rmw_fastrtps asks for a listening port of their own ("unique network flow") for the subscription
+# that hears the graph's updates, ros_discovery_info (init_rmw_context_impl.cpp), and Fast DDS picks the
+# first free one from its port base minus 400 up to the base (RTPSParticipantImpl.cpp), in any domain.
+GRAPH_PORTS = (7400 - 400, 7400)
+
+
 def classify_port(port: int, domain_id: int) -> str:
     """What a UDP ``port`` of a participant in ``domain_id`` is for, as a short phrase.
 
@@ -162,6 +168,8 @@ def classify_port(port: int, domain_id: int) -> str:
         return f"{kind}, unicast (participant {participant})"
     if port >= 32768:
         return "sending socket (ephemeral port picked by the OS)"
+    if GRAPH_PORTS[0] <= port < GRAPH_PORTS[1]:
+        return "graph updates (ros_discovery_info), a port of their own"
     return "another Fast DDS port, outside the domain's RTPS range"
 
 

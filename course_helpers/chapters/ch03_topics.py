@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import time
+from array import array
 from dataclasses import dataclass
 
 from geometry_msgs.msg import Twist
@@ -240,29 +241,36 @@ def payload_message(size_bytes: int) -> UInt8MultiArray:
     return msg
 
 
+NUMBER_BYTES = 8  # each payload starts with its message's number (little-endian), so sent and received match
+CDR_DATA_OFFSET = 16  # where a serialized UInt8MultiArray's data begins: CDR header, empty layout, length
+
+
 class PayloadPublisher(Node):
-    """Publishes ``size_bytes`` of payload (std_msgs/UInt8MultiArray) on ``topic`` at ``rate_hz``.
+    """Publishes ``size_bytes`` of payload (std_msgs/UInt8MultiArray) on ``topic`` at ``rate_hz``; the
+    payload's first 8 bytes hold the message's number (1, 2, ...).
 
     After each message it reports ``report('sent', count=N)`` over the process channel (in a child
-    process; see :func:`sent_rate`).
+    process; see :func:`sent_rate`): N is also the number of the message just sent.
     """
 
     def __init__(self, size_bytes: int, rate_hz: float, topic: str = "payload",
                  name: str = "payload_publisher"):
         super().__init__(name)
-        self.msg = payload_message(size_bytes)
+        self.msg = payload_message(max(size_bytes, NUMBER_BYTES))
         self.sent = 0
         self.publisher = self.create_publisher(UInt8MultiArray, topic, 10)
         self.timer = self.create_timer(1.0 / rate_hz, self.tick)
 
     def tick(self) -> None:
-        self.publisher.publish(self.msg)
         self.sent += 1
+        self.msg.data[:NUMBER_BYTES] = array("B", self.sent.to_bytes(NUMBER_BYTES, "little"))
+        self.publisher.publish(self.msg)
         report("sent", count=self.sent)
 
 
 class BandwidthMeter(Node):
-    """Keeps the size in bytes of every message on ``topic``, as it travelled (like ``ros2 topic bw``).
+    """Keeps the number and the size in bytes of every message on ``topic``, as it travelled (like
+    ``ros2 topic bw``; a :class:`PayloadPublisher`'s messages carry their numbers).
 
     The subscription is raw: the callback gets the serialized message, not a decoded one.
     """
@@ -270,20 +278,23 @@ class BandwidthMeter(Node):
     def __init__(self, topic: str = "/payload", name: str = "bandwidth_meter"):
         super().__init__(name)
         self.sizes: list[int] = []  # bytes of each message received, oldest first
+        self.numbers: list[int] = []  # the number each of them carried
         self.subscription = self.create_subscription(UInt8MultiArray, topic, self.on_message, 10, raw=True)
 
     def on_message(self, raw: bytes) -> None:
+        number = raw[CDR_DATA_OFFSET:CDR_DATA_OFFSET + NUMBER_BYTES]
+        self.numbers.append(int.from_bytes(number, "little"))
         self.sizes.append(len(raw))
 
 
 @dataclass
 class BandwidthSample:
-    """What a subscriber received from one payload size during the measurement window."""
+    """What a subscriber received of the messages one payload size sent during the measurement window."""
 
     payload_bytes: int
     wire_bytes: int  # serialized size of one message
     nominal_hz: float
-    received_hz: float
+    received_hz: float  # of the messages sent in the window, those that arrived, per second
     bytes_per_s: float
     sent_hz: float  # what the publisher managed to send (less than nominal on a busy machine)
 
@@ -299,18 +310,21 @@ def measure_bandwidth(rt, sizes=(100, 10_000, 100_000, 500_000), rate_hz: float 
 
     Args:
         rt: the kernel's course runtime.
-        sizes: payload sizes in bytes (0..4,000,000), measured one after the other.
+        sizes: payload sizes in bytes (8..4,000,000: each message carries its 8-byte number),
+            measured one after the other.
         rate_hz: the publishing rate, (0, 500] Hz.
         duration_s: the measurement window per size, seconds.
 
     Returns:
-        One :class:`BandwidthSample` per size. A :class:`BandwidthMeter` in this process counts
-        the bytes, spun by an executor of its own so that the notebook's other nodes do not
-        delay it.
+        One :class:`BandwidthSample` per size: of the messages the publisher sent in the window (its
+        own reports say which), how many arrived and their bytes, per second of the window; so fewer
+        can arrive than were sent, never more. A :class:`BandwidthMeter` in this process counts them,
+        spun by an executor of its own so that the notebook's other nodes do not delay it.
     """
     sizes = [int(s) for s in sizes]
-    if not sizes or any(s < 0 or s > 4_000_000 for s in sizes):
-        raise CourseError(f"sizes must be payload sizes from 0 to 4000000 bytes, got {sizes!r}")
+    if not sizes or any(s < NUMBER_BYTES or s > 4_000_000 for s in sizes):
+        raise CourseError(f"sizes must be payload sizes from {NUMBER_BYTES} to 4000000 bytes (each message "
+                          f"carries its {NUMBER_BYTES}-byte number), got {sizes!r}")
     if not 0 < rate_hz <= 500:
         raise CourseError(f"rate_hz must be in (0, 500], got {rate_hz!r}")
     samples = []
@@ -318,28 +332,31 @@ def measure_bandwidth(rt, sizes=(100, 10_000, 100_000, 500_000), rate_hz: float 
     with spinning_alone(rt, BandwidthMeter, thread_name="bandwidth_meter") as meter:
         try:
             for size in sizes:
-                wire = message_size(payload_message(size))
-
-                def this_size(n: int, wire: int = wire) -> bool:
-                    # a late message of the previous (stopped) publisher must not count for this size
-                    return wire / 2 <= n <= wire * 2 + 64
-
-                publisher = rt.spawn("payload", PayloadPublisher,
-                                     {"size_bytes": size, "rate_hz": rate_hz}, wait_for="/payload_publisher")
-                rt.wait_until(lambda: sum(map(this_size, meter.sizes)) >= 2, 10,
-                              f"the first {size}-byte messages")
-                start_count, start = len(meter.sizes), time.monotonic()
-                time.sleep(duration_s)  # the measurement window
-                window = [n for n in meter.sizes[start_count:] if this_size(n)]
-                end = time.monotonic()
-                samples.append(BandwidthSample(size, wire, rate_hz, len(window) / (end - start),
-                                               sum(window) / (end - start),
-                                               sent_rate(publisher, start, end)))
+                samples.append(_measure_one_size(rt, meter, size, rate_hz, duration_s))
                 rt.stop_child("payload")
                 meter.sizes.clear()
+                meter.numbers.clear()
         finally:
             rt.stop_child("payload")
     return samples
+
+
+def _measure_one_size(rt, meter: BandwidthMeter, size: int, rate_hz: float,
+                      duration_s: float) -> BandwidthSample:
+    publisher = rt.spawn("payload", PayloadPublisher, {"size_bytes": size, "rate_hz": rate_hz},
+                         wait_for="/payload_publisher")
+    rt.wait_until(lambda: len(meter.numbers) >= 2, 10, f"the first {size}-byte messages")
+    start = time.monotonic()
+    time.sleep(duration_s)  # the measurement window
+    end = time.monotonic()
+    sent = {d["count"] for t, d in publisher.channel.stamped("sent") if start <= t <= end}
+    last = max(sent, default=0)
+    # a sentinel, not a wait: the next message, from the same writer in order, comes after them all
+    rt.wait_until(lambda: any(n > last for n in meter.numbers[:]), 10, f"message {last + 1} of {size} bytes")
+    wire = message_size(payload_message(size))  # a late message of the previous size is not one of these
+    arrived = [b for n, b in zip(meter.numbers[:], meter.sizes[:], strict=False) if n in sent and b == wire]
+    return BandwidthSample(size, wire, rate_hz, len(arrived) / (end - start),
+                           sum(arrived) / (end - start), len(sent) / (end - start))
 
 
 def plot_bandwidth(samples: list[BandwidthSample]):
