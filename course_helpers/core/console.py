@@ -30,7 +30,9 @@ class NodeConsole:
 
     It is a display with an ID: the lines a node prints or logs replace its content a few times a
     second, so it is live in JupyterLab, and the saved notebook keeps the last lines as plain text
-    and HTML that any notebook viewer shows. Until the node logs something it shows nothing.
+    and HTML that any notebook viewer shows; its header says they include what later cells made the
+    node do (a server's console shows the requests of the cells below it). Until the node logs
+    something it shows nothing.
     """
 
     def __init__(self, title: str, show: bool = True):
@@ -58,7 +60,8 @@ class NodeConsole:
     def bundle(self, text: str) -> dict:
         """The console's lines as plain text and HTML (what a saved notebook shows)."""
         html = (f"<div class='course-console' data-console='{self._name()}'>"
-                f"<small>console of {self._name()}</small>"
+                f"<small>console of {self._name()}: all it logged while the notebook ran, "
+                "what later cells made it do included</small>"
                 f"<pre style='max-height:10em;overflow:auto;margin:0'>{html_escape(text)}</pre></div>")
         return {"text/plain": f"console of {self.title}:\n{text}", "text/html": html}
 
