@@ -22,7 +22,7 @@ A quiz file::
             feedback: That lists nodes.
           - text: ros2 topic list -t
             correct: true
-            feedback: "Right: %ros2 topic list -t in this notebook."
+            feedback: "%ros2 topic list -t in this notebook."
 
 A choice without ``correct: true`` is a wrong one. Quizzes can also be built in code:
 ``Quiz(title, [Question(prompt, [Choice(text, correct, feedback), ...]), ...])``.
