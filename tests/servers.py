@@ -6,12 +6,15 @@ for and stopped in one way (the process plumbing is ``tools/servers.py``, which 
   yields a :class:`Lab`; afterwards shuts every kernel down through the API, stops the server and
   fails the test if a kernel was left;
 * :func:`jupyterhub`: a JupyterHub command, waited for until its API answers; stopped afterwards;
+* :class:`KernelChannels`: code run in a kernel of a Jupyter server over its websocket, as JupyterLab
+  runs a cell;
 * :class:`ContainerServer`: a detached container of the course's image serving HTTP.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import secrets
 import shutil
@@ -19,6 +22,7 @@ import sys
 import tempfile
 import urllib.error
 import urllib.request
+import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,6 +72,16 @@ class Lab:
         """``path`` ('lab/tree/00_welcome.ipynb') on this server, with the token."""
         return f"{self.base}/{path}?token={self.token}"
 
+    def open_notebook(self, path: str, kernel: str = "python3") -> tuple[str, KernelChannels]:
+        """A session for the notebook ``path`` (as JupyterLab opens one) with a new ``kernel``:
+        (its kernel id, its channels)."""
+        session = self.api("/api/sessions", method="POST", timeout=120,
+                           body={"path": path, "name": os.path.basename(path), "type": "notebook",
+                                 "kernel": {"name": kernel}})
+        kernel_id = session["kernel"]["id"]
+        url = f"{self.base.replace('http', 'ws', 1)}/api/kernels/{kernel_id}/channels"
+        return kernel_id, KernelChannels(url, self.token)
+
 
 @contextlib.contextmanager
 def jupyter_lab(root: str | Path = REPO / "notebooks", env: dict[str, str] | None = None,
@@ -112,6 +126,51 @@ def jupyterhub(argv: list[str], base: str, log_path: str | Path, cwd: str | Path
         yield hub
     finally:
         hub.stop(timeout=30)
+
+
+class KernelChannels:
+    """Runs code in a kernel of a Jupyter server over the server's kernel websocket (the way JupyterLab
+    does), and returns what it printed."""
+
+    def __init__(self, url: str, token: str, user: str = "test", timeout: float = 120):
+        import websocket  # websocket-client
+
+        self.ws = websocket.create_connection(url, header=[f"Authorization: token {token}"], timeout=timeout)
+        self.session, self.user = uuid.uuid4().hex, user
+
+    def run(self, code: str) -> str:
+        """Execute ``code``; return its stdout and results; fail the test with the traceback on error."""
+        msg_id = uuid.uuid4().hex
+        self.ws.send(json.dumps({
+            "header": {"msg_id": msg_id, "session": self.session, "username": self.user,
+                       "msg_type": "execute_request", "version": "5.3"},
+            "parent_header": {}, "metadata": {}, "buffers": [], "channel": "shell",
+            "content": {"code": code, "silent": False, "store_history": True, "user_expressions": {},
+                        "allow_stdin": False, "stop_on_error": True}}))
+        printed, reply, idle = [], None, False
+        while reply is None or not idle:
+            frame = self.ws.recv()
+            if isinstance(frame, bytes):
+                continue  # binary frames carry widget buffers only
+            message = json.loads(frame)
+            if message.get("parent_header", {}).get("msg_id") != msg_id:
+                continue
+            kind, content = message["msg_type"], message["content"]
+            if kind == "stream":
+                printed.append(content["text"])
+            elif kind in ("execute_result", "display_data"):
+                printed.append(content["data"].get("text/plain", "") + "\n")  # a display is a line of its own
+            elif kind == "status":
+                idle = content["execution_state"] == "idle"
+            elif kind == "execute_reply":
+                reply = content
+        if reply["status"] != "ok":
+            pytest.fail(f"{self.user}'s kernel: {reply.get('ename')}: {reply.get('evalue')}\n"
+                        + "\n".join(reply.get("traceback", []))[-3000:] + f"\n\n{code[:300]}")
+        return "".join(printed)
+
+    def close(self) -> None:
+        self.ws.close()
 
 
 def http_get(url: str, token: str | None = None) -> tuple[int, dict, str]:

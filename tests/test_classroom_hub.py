@@ -30,7 +30,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import uuid
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -41,7 +40,7 @@ from course_helpers.core.domains import domain_free, domain_holders
 from course_helpers.core.waiting import poll_until
 from tools.servers import free_port
 
-from .servers import jupyterhub
+from .servers import KernelChannels, jupyterhub
 from .shared_install import closed_to_others as _closed_to_others
 from .shared_install import shared_venv as _shared_venv
 
@@ -205,52 +204,13 @@ c.JupyterHub.load_roles = [{{"name": "classroom-test", "services": ["classroom-t
         shutil.rmtree(workdir, ignore_errors=True)
 
 
-class KernelClient:
-    """Runs code in a kernel of a student's server over the server's kernel websocket (the way
-    JupyterLab does), and returns what it printed."""
-
-    def __init__(self, hub: Hub, user: str, kernel_id: str):
-        url = f"{hub.base.replace('http', 'ws', 1)}/user/{user}/api/kernels/{kernel_id}/channels"
-        self.ws = websocket.create_connection(url, header=[f"Authorization: token {hub.token}"],
-                                              timeout=CELL_TIMEOUT_S)
-        self.session, self.user = uuid.uuid4().hex, user
-
-    def run(self, code: str) -> str:
-        """Execute ``code``; return its stdout and results; fail the test with the traceback on error."""
-        msg_id = uuid.uuid4().hex
-        self.ws.send(json.dumps({
-            "header": {"msg_id": msg_id, "session": self.session, "username": self.user,
-                       "msg_type": "execute_request", "version": "5.3"},
-            "parent_header": {}, "metadata": {}, "buffers": [], "channel": "shell",
-            "content": {"code": code, "silent": False, "store_history": True, "user_expressions": {},
-                        "allow_stdin": False, "stop_on_error": True}}))
-        printed, reply, idle = [], None, False
-        while reply is None or not idle:
-            frame = self.ws.recv()
-            if isinstance(frame, bytes):
-                continue  # binary frames carry widget buffers only
-            message = json.loads(frame)
-            if message.get("parent_header", {}).get("msg_id") != msg_id:
-                continue
-            kind, content = message["msg_type"], message["content"]
-            if kind == "stream":
-                printed.append(content["text"])
-            elif kind in ("execute_result", "display_data"):
-                printed.append(content["data"].get("text/plain", ""))
-            elif kind == "status":
-                idle = content["execution_state"] == "idle"
-            elif kind == "execute_reply":
-                reply = content
-        if reply["status"] != "ok":
-            pytest.fail(f"{self.user}'s kernel: {reply.get('ename')}: {reply.get('evalue')}\n"
-                        + "\n".join(reply.get("traceback", []))[-3000:] + f"\n\n{code[:300]}")
-        return "".join(printed)
-
-    def close(self) -> None:
-        self.ws.close()
+def KernelClient(hub: Hub, user: str, kernel_id: str) -> KernelChannels:
+    """A student's kernel behind the hub's proxy (:class:`tests.servers.KernelChannels`)."""
+    url = f"{hub.base.replace('http', 'ws', 1)}/user/{user}/api/kernels/{kernel_id}/channels"
+    return KernelChannels(url, hub.token, user=user, timeout=CELL_TIMEOUT_S)
 
 
-def _open_notebook(hub: Hub, user: str) -> tuple[KernelClient, list[str]]:
+def _open_notebook(hub: Hub, user: str) -> tuple[KernelChannels, list[str]]:
     """A kernel for the student's own 00_welcome.ipynb (a session, as JupyterLab opens it), and its
     code cells read through the server's contents API."""
     base = f"{hub.base}/user/{user}/api"
@@ -320,7 +280,7 @@ def test_three_students_on_one_hub(hub, tmp_path):
     figures = {"servers_ready_s": round(time.monotonic() - started, 1)}
     # Notebook 00 of each student's working copy, in three kernels at the same time.
     started = time.monotonic()
-    def run_notebook(user: str) -> tuple[KernelClient, dict]:
+    def run_notebook(user: str) -> tuple[KernelChannels, dict]:
         client, cells = _open_notebook(hub, user)
         assert len(cells) > 10, cells
         for code in cells:
