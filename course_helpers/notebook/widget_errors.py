@@ -10,6 +10,12 @@ remembers the cell's number. :func:`install` wraps ipywidgets' one entry for bro
 observer's, or one a button's dispatcher would print) becomes one line in the owning widget's error
 line, saying what happened and, for a node that a later cell destroyed, which cell to run again.
 The next message that is handled without an error clears the line.
+
+A course slider sends its value when it is released, not while it moves (``continuous_update`` off):
+a slider that sends while it moves also sends when it is first drawn, its value passed through the
+browser slider's own arithmetic (5.0 comes back as 5.000000000000001). Under "Run All" that message
+reaches the kernel after the later cells ran, and undid what they set (00's rate slider showed 5.00
+after the next cell had set 20.0, and retuned a talker that a later cell had destroyed).
 """
 
 from __future__ import annotations
@@ -67,10 +73,12 @@ def owned(widget, title: str, inside: bool = False):
     _owners[:] = [ref for ref in _owners if ref() is not None]
     _owners.append(weakref.ref(owner))
     owner.box._course_owner = owner  # the box keeps its owner alive while it is shown
-    for member in _tree(widget):  # made before install(): their comms still call the original
+    for member in _tree(widget):
         comm = getattr(member, "comm", None)
-        if comm is not None:
+        if comm is not None:  # made before install(): their comms still call the original
             comm.on_msg(member._handle_msg)
+        if "Slider" in type(member).__name__ and getattr(member, "continuous_update", False):
+            member.continuous_update = False  # no render echo (see the module docstring)
     return owner.box
 
 
