@@ -20,13 +20,14 @@ XDIST  := -n $(JOBS) --dist loadfile --no-loadscope-reorder
 NB_JOBS ?= $(if $(filter 1,$(JOBS)),1,$(shell echo $$(($(JOBS) + 1))))
 NB_XDIST := -n $(NB_JOBS) --dist loadfile --no-loadscope-reorder
 # The slowest honest cell takes about 25 s on a loaded 2-core machine.
-# The unit tests; the container image's tests (tests/test_image.py) are `make test-image`'s.
-UNIT   := tests --ignore=tests/test_image.py
+# The unit tests; the container image's tests (tests/test_image.py) are `make test-image`'s, and every
+# notebook run all in a browser (tests/test_all_notebooks_browser.py) is `make test-browser`'s.
+UNIT   := tests --ignore=tests/test_image.py --ignore=tests/test_all_notebooks_browser.py
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
 .PHONY: setup lab test unit notebooks durations lint bench execute book test-pythons release grade grade-all clean \
-        image test-image
+        image test-image test-browser
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -62,6 +63,12 @@ test: setup
 
 unit: setup
 	$(PY) -m pytest $(UNIT) -q -rfEs $(XDIST)
+
+# Every notebook as a student meets it: Run All in JupyterLab and headless Chromium, then every slider
+# and button once; no error may reach JupyterLab's log console (tests/test_all_notebooks_browser.py).
+# Two workers, each with its own JupyterLab, one notebook at a time each. Not part of `make test`.
+test-browser: setup
+	$(PY) -m pytest tests/test_all_notebooks_browser.py -q -rfEs -n 2 --dist load
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup
