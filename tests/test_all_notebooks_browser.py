@@ -164,7 +164,8 @@ def _designed_error_under(notebook, description: str) -> None:
     line = cell.locator(ERROR_LINE)
     assert poll_until(lambda: line.count() == 1, 20, period=0.2), "the slider's error line did not appear"
     text = line.inner_text()
-    assert re.search(r"the node it drives was destroyed by a later cell .*: run cell \[\d+\] again", text), text
+    assert re.search(r"the node it drives was destroyed by a later cell .*: run cell \[\d+\] again", text), \
+        text
 
 
 def _screenshot_cell(notebook, description: str, picture: str) -> None:
