@@ -29,8 +29,8 @@ ROOT_RANK = 6  # course_helpers/__init__.py: the entry point may use every layer
 MAX_MODULE_LINES = 500
 
 # --- what core/ may import besides the standard library: two named lists
-# ROS 2's own Python packages, from the Jazzy wheels.
-ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser"}
+# ROS 2's own Python packages, from the Jazzy wheels (rosgraph_msgs: the /clock message of sim_clock.py).
+ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser", "rosgraph_msgs"}
 # A few other pinned libraries, each for one job and only in the modules named.
 CORE_EXTRAS = {
     "yaml": ({"course_helpers.core.msg_yaml"}, "messages as YAML, the way `ros2 topic echo` prints them"),
