@@ -77,8 +77,11 @@ def test_run_all_then_every_slider_and_button(lab, name):
         for line in errors:  # the designed message: one line that says what happened
             assert line.count("\n") == 0 and "Traceback" not in line, line
         log = _log_console(page)
-        print(f"{name}: ran in {ran:.0f} s; {moved} sliders moved, {pressed} buttons pressed; "
-              f"{len(errors)} widget error line(s): {errors}; log console: {log[:300]!r}")
+        summary = (f"{name}: ran in {ran:.0f} s; {moved} sliders moved, {pressed} buttons pressed; "
+                   f"{len(errors)} widget error line(s): {errors}; log console: {log[:300]!r}")
+        print(summary)
+        with open(artifact(f"run_all_{stem}.txt"), "w", encoding="utf-8") as out:  # for the record
+            out.write(summary + "\n")
         assert not LOG_ERRORS.search(log), f"JupyterLab's log console holds an error:\n{log[-3000:]}"
     for session in lab.api("/api/sessions"):  # the next notebook starts on a free machine
         if session["path"].endswith(name):
