@@ -152,12 +152,16 @@ class _tracebacks_caught:
 
         self.shell = get_ipython()
         if self.shell is not None:
+            self.previous = self.shell.__dict__.get("showtraceback")  # one set on the instance, if any
             self.shell.showtraceback = lambda *_a, **_k: self.caught.append(sys.exc_info()[1])
         return self
 
     def __exit__(self, *_exc):
         if self.shell is not None:
-            del self.shell.showtraceback  # the class's method again
+            if self.previous is None:
+                del self.shell.showtraceback  # the class's method again
+            else:
+                self.shell.showtraceback = self.previous
         return False
 
 
