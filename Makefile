@@ -25,13 +25,14 @@ TIMING_XDIST := -n $(TIMING_JOBS) --dist loadfile --no-loadscope-reorder
 NB_JOBS ?= $(if $(filter 1,$(JOBS)),1,$(shell echo $$(($(JOBS) + 1))))
 NB_XDIST := -n $(NB_JOBS) --dist loadfile --no-loadscope-reorder
 # The slowest honest cell takes about 25 s on a loaded 2-core machine.
-# The unit tests; the container image's tests (tests/test_image.py) are `make test-image`'s.
-UNIT   := tests --ignore=tests/test_image.py
+# The unit tests; the container image's tests (tests/test_image.py) are `make test-image`'s, and every
+# notebook run all in a browser (tests/test_all_notebooks_browser.py) is `make test-browser`'s.
+UNIT   := tests --ignore=tests/test_image.py --ignore=tests/test_all_notebooks_browser.py
 NBVAL  := --nbval --nbval-current-env --nbval-sanitize-with tests/nbval_sanitize.cfg \
           --nbval-cell-timeout=120 -p no:cacheprovider
 
-.PHONY: setup lab test unit logic timing notebooks soak durations lint bench execute book test-pythons release grade grade-all clean \
-        image test-image
+.PHONY: setup lab test unit logic timing notebooks soak durations lint bench execute book test-pythons release grade \
+        grade-all clean image test-image test-browser
 .DEFAULT_GOAL := lab
 
 setup: $(STAMP)
@@ -75,6 +76,12 @@ logic: setup
 
 timing: setup
 	$(PY) -m pytest $(UNIT) -m timing -q -rfEs $(TIMING_XDIST) $(PYTEST_EXTRA)
+
+# Every notebook as a student meets it: Run All in JupyterLab and headless Chromium, then every slider
+# and button once; no error may reach JupyterLab's log console (tests/test_all_notebooks_browser.py).
+# Two workers, each with its own JupyterLab, one notebook at a time each. Not part of `make test`.
+test-browser: setup
+	$(PY) -m pytest tests/test_all_notebooks_browser.py -q -rfEs -n 2 --dist load
 
 # Strict nbval of every notebook, then each notebook once more in the same kernel (notebooks/conftest.py).
 notebooks: setup

@@ -20,7 +20,6 @@ its CPU time over 10 s (goal: <= 1% of one core).
 from __future__ import annotations
 
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -138,9 +137,8 @@ def in_kernel_rates() -> tuple[list[float], list[float]]:
     from jupyter_client.manager import start_new_kernel
 
     code = textwrap.dedent(f"""
-        import json, sys
-        sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
-        import executor_throughput as bench
+        import json
+        import benchmarks.executor_throughput as bench
         plain, course = [], []
         for _ in range({KERNEL_ROUNDS}):
             plain.append(bench.plain_rclpy_rate())

@@ -1,5 +1,5 @@
 """What the nbgrader test files share: a chapter (04 unless told otherwise) released into a
-temporary course, the misbehaving answers, handing in (``grading.handin``) and grading with
+temporary course, the misbehaving answers, handing in (``tools.grading.handin``) and grading with
 ``tools/assignments.py``.
 
 The students of chapter 04 are split over ``test_nbgrader.py`` and ``test_nbgrader_misbehaving.py`` so
@@ -15,19 +15,18 @@ import sys
 from pathlib import Path
 
 import psutil
+import pytest
 
 from course_helpers.core import processes
 from course_helpers.core.waiting import poll_until
+from tools.grading import handin, isolation, results, source, student_build, verdict  # noqa: F401
+from tools.grading.handin import EXTRA_CELL as EXTRA  # noqa: F401 (a cell the student added at the end)
+from tools.grading.handin import grade_cells, solved  # noqa: F401
+from tools.grading.source import BEGIN  # noqa: F401
 
 from .conftest import REPO
 
 TOOLS = Path(REPO) / "tools"
-sys.path.insert(0, str(TOOLS))
-
-from grading import handin, isolation, results, source, student_build, verdict  # noqa: E402, F401
-from grading.handin import EXTRA_CELL as EXTRA  # noqa: E402, F401 (a cell the student added at the end)
-from grading.handin import grade_cells, solved  # noqa: E402, F401
-from grading.source import BEGIN  # noqa: E402, F401
 
 CHAPTER = "04_services"
 EX1, EX2 = "ex1_BatteryMonitor", "ex2_SumRelay"
@@ -76,6 +75,28 @@ def release_course(tmp_path_factory, chapter: str = "04") -> tuple[Path, str]:
     course_dir = tmp_path_factory.mktemp("course")
     output = tool("--course-dir", str(course_dir), "release", chapter, timeout=600)
     return course_dir, output
+
+
+def released_course(chapter: str = "04"):
+    """A module-scoped fixture ``course``: ``chapter`` released into a new course directory, as
+    (the directory, the tool's output). A test file says ``course = released_course("10")``."""
+    @pytest.fixture(scope="module", name="course")
+    def course(tmp_path_factory):
+        return release_course(tmp_path_factory, chapter)
+
+    return course
+
+
+def graded_students(students_of, chapter: str = CHAPTER, cell_timeout: int = CELL_TIMEOUT_S):
+    """A module-scoped fixture ``graded`` (on ``course``): the students ``students_of(course_dir)``
+    returns ({student: {exercise: answer}}) handed in and graded, as :func:`grade_students` returns."""
+    @pytest.fixture(scope="module", name="graded")
+    def graded(course, tmp_path_factory):
+        course_dir, _ = course
+        return grade_students(course_dir, students_of(course_dir), tmp_path_factory, chapter=chapter,
+                              cell_timeout=cell_timeout)
+
+    return graded
 
 
 def solutions(course_dir: Path) -> dict[str, str]:

@@ -26,15 +26,12 @@ import pytest
 
 from course_helpers.notebook.quiz import Quiz
 
+from .browsers import artifact, browser_page, require_chromium
 from .conftest import REPO
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.xdist_group("book")]
 
 SITE = os.path.join(REPO, "build", "book", "html")
-ARTIFACTS = os.path.join(REPO, "tests", "artifacts")
-CHROMIUM = os.environ.get("COURSE_CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
 CHAPTERS = sorted(os.path.splitext(os.path.basename(p))[0]
                   for p in glob.glob(os.path.join(REPO, "notebooks", "*.ipynb")))
 SCREENSHOTS = {"index": "book_landing.png", "08b_qos_lab": "book_08b_qos_lab.png",
@@ -56,11 +53,7 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 @pytest.fixture(scope="module")
 def site():
     """The freshly built site served on a free localhost port: yields its base URL."""
-    if not os.path.exists(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) or "
-                    "set COURSE_CHROMIUM to an installed Chromium-based browser; Playwright must not "
-                    "download one")
-    pytest.importorskip("playwright.sync_api", reason="playwright (PyPI) is not installed")
+    require_chromium()
     build = subprocess.run([sys.executable, os.path.join(REPO, "tools", "build_book.py")], cwd=REPO,
                            capture_output=True, text=True, timeout=600)
     assert build.returncode == 0, build.stdout + build.stderr
@@ -85,42 +78,34 @@ def _answers(url: str) -> bool:
 def test_every_chapter_page_has_its_title_images_and_working_links(site):
     """One test for the whole site, so it is built once (two workers would rebuild it under each other)."""
     _site_shows_static_records_not_widget_reprs()
-    from playwright.sync_api import sync_playwright
-
-    os.makedirs(ARTIFACTS, exist_ok=True)
     problems, checked_links = [], set()
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        try:
-            page = browser.new_page(viewport={"width": 1280, "height": 900})
-            for name in ["index", *CHAPTERS]:
-                url = f"{site}/{name}.html"
-                response = page.goto(url, wait_until="load")
-                if response is None or response.status != 200:
-                    problems.append(f"{name}: HTTP {response and response.status}")
-                    continue
-                heading = page.locator("main h1").first.inner_text().replace("#", "").strip()
-                expected = "ROS 2 architecture, live" if name == "index" else _title_of(name)
-                if heading != expected:
-                    problems.append(f"{name}: title {heading!r}, expected {expected!r}")
-                images = page.eval_on_selector_all(
-                    "main img", "imgs => imgs.map(i => [i.currentSrc.slice(0, 60), i.naturalWidth])")
-                problems += [f"{name}: image {src!r} did not load" for src, width in images if width == 0]
-                if name != "index" and not images:
-                    problems.append(f"{name}: no images at all")
-                links = page.eval_on_selector_all("a[href]", "links => links.map(a => a.href)")
-                for link in links:
-                    target = urllib.parse.urldefrag(link).url
-                    if target.startswith(site) and target not in checked_links:
-                        checked_links.add(target)
-                        if not _answers(target):
-                            problems.append(f"{name}: broken link {target}")
-                if name != "index":
-                    problems += _quiz_answers_shown(page, name)
-                if name in SCREENSHOTS:
-                    page.screenshot(path=os.path.join(ARTIFACTS, SCREENSHOTS[name]), full_page=False)
-        finally:
-            browser.close()
+    with browser_page(1280, 900) as page:
+        for name in ["index", *CHAPTERS]:
+            url = f"{site}/{name}.html"
+            response = page.goto(url, wait_until="load")
+            if response is None or response.status != 200:
+                problems.append(f"{name}: HTTP {response and response.status}")
+                continue
+            heading = page.locator("main h1").first.inner_text().replace("#", "").strip()
+            expected = "ROS 2 architecture, live" if name == "index" else _title_of(name)
+            if heading != expected:
+                problems.append(f"{name}: title {heading!r}, expected {expected!r}")
+            images = page.eval_on_selector_all(
+                "main img", "imgs => imgs.map(i => [i.currentSrc.slice(0, 60), i.naturalWidth])")
+            problems += [f"{name}: image {src!r} did not load" for src, width in images if width == 0]
+            if name != "index" and not images:
+                problems.append(f"{name}: no images at all")
+            links = page.eval_on_selector_all("a[href]", "links => links.map(a => a.href)")
+            for link in links:
+                target = urllib.parse.urldefrag(link).url
+                if target.startswith(site) and target not in checked_links:
+                    checked_links.add(target)
+                    if not _answers(target):
+                        problems.append(f"{name}: broken link {target}")
+            if name != "index":
+                problems += _quiz_answers_shown(page, name)
+            if name in SCREENSHOTS:
+                page.screenshot(path=artifact(SCREENSHOTS[name]), full_page=False)
     assert not problems, "\n".join(problems)
     assert len(checked_links) > len(CHAPTERS)  # the navigation links every chapter
 

@@ -26,12 +26,10 @@ import pwd
 import secrets
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
 import time
-import uuid
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -40,7 +38,9 @@ import pytest
 from course_helpers.core.dds_config import udp_loopback_env
 from course_helpers.core.domains import domain_free, domain_holders
 from course_helpers.core.waiting import poll_until
+from tools.servers import free_port
 
+from .servers import KernelChannels, jupyterhub
 from .shared_install import closed_to_others as _closed_to_others
 from .shared_install import shared_venv as _shared_venv
 
@@ -57,12 +57,6 @@ websocket = pytest.importorskip("websocket", reason="websocket-client is not ins
 pytest.importorskip("jupyterhub", reason="JupyterHub (PyPI: jupyterhub==6.1.1) is not installed")
 
 pytestmark = pytest.mark.timeout(300)
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def _proxy() -> str | None:
@@ -126,8 +120,8 @@ def _describe(pids: list[int]) -> list[str]:
 class Hub:
     """The running hub: its base URL and a service token with admin rights over users and servers."""
 
-    def __init__(self, base: str, token: str, process: subprocess.Popen, log: Path):
-        self.base, self.token, self.process, self.log = base, token, process, log
+    def __init__(self, base: str, token: str, log: Path):
+        self.base, self.token, self.log = base, token, log
         self.password = ""
         self.http = requests.Session()
         self.http.headers["Authorization"] = f"token {token}"
@@ -170,15 +164,15 @@ def hub(tmp_path_factory):
         _remove_user(name)  # left over from an interrupted run
         subprocess.run(["useradd", "--create-home", "--shell", "/bin/bash", name], check=True,
                        capture_output=True, timeout=30)
-    port, token, password = _free_port(), secrets.token_hex(32), secrets.token_hex(8)
+    port, token, password = free_port(), secrets.token_hex(32), secrets.token_hex(8)
     test_config = state / "test_config.py"
     test_config.write_text(f"""
 load_subconfig({str(CONFIG)!r})  # the classroom config as instructors use it, then the test's parts
 c.JupyterHub.authenticator_class = "shared-password"
 c.SharedPasswordAuthenticator.user_password = {password!r}
 c.Authenticator.allowed_users = {set(STUDENTS)!r}
-c.JupyterHub.hub_port = {_free_port()}
-c.ConfigurableHTTPProxy.api_url = "http://127.0.0.1:{_free_port()}"
+c.JupyterHub.hub_port = {free_port()}
+c.ConfigurableHTTPProxy.api_url = "http://127.0.0.1:{free_port()}"
 c.JupyterHub.services = [{{"name": "classroom-test", "api_token": {token!r}}}]
 c.JupyterHub.load_roles = [{{"name": "classroom-test", "services": ["classroom-test"],
     "scopes": ["admin:users", "admin:servers", "access:servers"]}}]
@@ -189,90 +183,34 @@ c.JupyterHub.load_roles = [{{"name": "classroom-test", "services": ["classroom-t
                ROS2_COURSE_STUDENTS=str(state / "no-students-file"), ROS2_COURSE_HUB_STATE=str(state),
                ROS2_COURSE_HUB_URL=f"http://127.0.0.1:{port}", ROS2_COURSE_PROXY=proxy)
     log_path = state / "jupyterhub.log"
-    log = open(log_path, "wb")  # closed in the finally below
-    process = subprocess.Popen([sys.executable, "-m", "jupyterhub", "-f", str(test_config)], cwd=state,
-                               env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    running = Hub(f"http://127.0.0.1:{port}", token, process, log_path)
-
-    def answers() -> bool:
-        try:
-            return running.http.get(f"{running.base}/hub/api/", timeout=2).status_code == 200
-        except requests.RequestException:
-            return False
-
+    running = Hub(f"http://127.0.0.1:{port}", token, log_path)
     try:
-        if not poll_until(lambda: process.poll() is not None or answers(), 60, period=0.3) \
-                or process.poll() is not None:
-            pytest.fail(f"JupyterHub did not start:\n{running.log_tail()}")
-        running.password = password
-        yield running
-    finally:
-        for name in STUDENTS:
+        # on SIGTERM afterwards the hub stops what is left (cleanup_servers)
+        with jupyterhub([sys.executable, "-m", "jupyterhub", "-f", str(test_config)], running.base,
+                        log_path, cwd=state, env=env, timeout=60):
             try:
-                if running.server(name) is not None:
-                    running.api("DELETE", f"/users/{name}/server")
-            except (AssertionError, requests.RequestException):
-                pass
-        try:
-            os.killpg(process.pid, signal.SIGTERM)  # the hub stops what is left (cleanup_servers)
-            process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait(timeout=5)
-        except ProcessLookupError:
-            pass
-        log.close()
+                running.password = password
+                yield running
+            finally:
+                for name in STUDENTS:
+                    try:
+                        if running.server(name) is not None:
+                            running.api("DELETE", f"/users/{name}/server")
+                    except (AssertionError, requests.RequestException):
+                        pass
+    finally:
         for name in STUDENTS:
             _remove_user(name)
         shutil.rmtree(workdir, ignore_errors=True)
 
 
-class KernelClient:
-    """Runs code in a kernel of a student's server over the server's kernel websocket (the way
-    JupyterLab does), and returns what it printed."""
-
-    def __init__(self, hub: Hub, user: str, kernel_id: str):
-        url = f"{hub.base.replace('http', 'ws', 1)}/user/{user}/api/kernels/{kernel_id}/channels"
-        self.ws = websocket.create_connection(url, header=[f"Authorization: token {hub.token}"],
-                                              timeout=CELL_TIMEOUT_S)
-        self.session, self.user = uuid.uuid4().hex, user
-
-    def run(self, code: str) -> str:
-        """Execute ``code``; return its stdout and results; fail the test with the traceback on error."""
-        msg_id = uuid.uuid4().hex
-        self.ws.send(json.dumps({
-            "header": {"msg_id": msg_id, "session": self.session, "username": self.user,
-                       "msg_type": "execute_request", "version": "5.3"},
-            "parent_header": {}, "metadata": {}, "buffers": [], "channel": "shell",
-            "content": {"code": code, "silent": False, "store_history": True, "user_expressions": {},
-                        "allow_stdin": False, "stop_on_error": True}}))
-        printed, reply, idle = [], None, False
-        while reply is None or not idle:
-            frame = self.ws.recv()
-            if isinstance(frame, bytes):
-                continue  # binary frames carry widget buffers only
-            message = json.loads(frame)
-            if message.get("parent_header", {}).get("msg_id") != msg_id:
-                continue
-            kind, content = message["msg_type"], message["content"]
-            if kind == "stream":
-                printed.append(content["text"])
-            elif kind in ("execute_result", "display_data"):
-                printed.append(content["data"].get("text/plain", ""))
-            elif kind == "status":
-                idle = content["execution_state"] == "idle"
-            elif kind == "execute_reply":
-                reply = content
-        if reply["status"] != "ok":
-            pytest.fail(f"{self.user}'s kernel: {reply.get('ename')}: {reply.get('evalue')}\n"
-                        + "\n".join(reply.get("traceback", []))[-3000:] + f"\n\n{code[:300]}")
-        return "".join(printed)
-
-    def close(self) -> None:
-        self.ws.close()
+def KernelClient(hub: Hub, user: str, kernel_id: str) -> KernelChannels:
+    """A student's kernel behind the hub's proxy (:class:`tests.servers.KernelChannels`)."""
+    url = f"{hub.base.replace('http', 'ws', 1)}/user/{user}/api/kernels/{kernel_id}/channels"
+    return KernelChannels(url, hub.token, user=user, timeout=CELL_TIMEOUT_S)
 
 
-def _open_notebook(hub: Hub, user: str) -> tuple[KernelClient, list[str]]:
+def _open_notebook(hub: Hub, user: str) -> tuple[KernelChannels, list[str]]:
     """A kernel for the student's own 00_welcome.ipynb (a session, as JupyterLab opens it), and its
     code cells read through the server's contents API."""
     base = f"{hub.base}/user/{user}/api"
@@ -342,7 +280,7 @@ def test_three_students_on_one_hub(hub, tmp_path):
     figures = {"servers_ready_s": round(time.monotonic() - started, 1)}
     # Notebook 00 of each student's working copy, in three kernels at the same time.
     started = time.monotonic()
-    def run_notebook(user: str) -> tuple[KernelClient, dict]:
+    def run_notebook(user: str) -> tuple[KernelChannels, dict]:
         client, cells = _open_notebook(hub, user)
         assert len(cells) > 10, cells
         for code in cells:

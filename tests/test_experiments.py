@@ -55,6 +55,17 @@ def test_config_rejects_what_is_not_allowed(changes, words):
     assert words in str(info.value)
 
 
+def test_every_run_label_spells_best_effort_one_way():
+    """Run labels (the presets' and those made from the fields) say 'best effort', never 'best-effort' or
+    'best_effort' (the table, the plot's legend and the status line show them side by side)."""
+    from course_helpers.chapters.ch08b_lab import PRESETS
+
+    labels = [config.describe() for entry in PRESETS.values() for config in entry["configs"]]
+    labels.append(ExperimentConfig(reliability="best_effort").describe())
+    assert [label for label in labels if "best-effort" in label or "best_effort" in label] == [], labels
+    assert sum("best effort" in label for label in labels) >= 3, labels
+
+
 def test_config_accepts_keep_all_without_depth_and_counts_samples():
     config = ExperimentConfig(history="keep_all", depth=None, rate_hz=400, duration_s=0.75)
     assert config.count == 300
@@ -187,6 +198,7 @@ def test_panel_plots_live_and_a_rerun_of_the_cell_leaves_nothing_running(rt):
           f"core, while receiving {rate:.0f} samples/s")
     assert lab.image.value != first_frame
     assert "qos-lab-results" in lab.table.value and "<td" in lab.table.value
+    assert "loopback MB: the megabytes received on this machine&#x27;s loopback interface" in lab.table.value
     assert lab.live_frames >= 1 and result.delivered > 0  # the picture followed the run as samples came
     # Drawing leaves the kernel's subscriber most of the CPU. (The samples per second it then receives
     # depend on what else this machine runs; benchmarks/qos_lab_soak.py measures them.)

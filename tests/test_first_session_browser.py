@@ -25,12 +25,7 @@ Screenshots: ``tests/artifacts/first_session_start.png`` (the start page),
 ``tests/artifacts/first_session_interrupt.png`` (the interrupted cell and the nodes after it) and
 ``tests/artifacts/first_session_lab_under_load.png`` (the QoS lab's panel under load).
 
-Cells are run as a student runs them, with a click in the editor and Shift+Enter, but only once
-the status bar shows the notebook's own kernel idle and the cell's editor has the focus in edit
-mode. A freshly opened notebook renders its cells while it still has no kernel ("No Kernel |
-Initializing"); a Shift+Enter then makes JupyterLab start a kernel of its own beside the one being
-started, or ask which to use, and may leave the cell unrun. A Shift+Enter without the focus runs
-another cell or none.
+Cells are run as a student runs them (``tests/lab_page.py``).
 
 The clone uses this checkout's ``.venv`` (``make lab VENV=...``, its install stamp taken as up to
 date): a set-up from scratch is what ``make test-pythons`` proves, and would take minutes here.
@@ -54,7 +49,10 @@ import psutil
 import pytest
 
 from course_helpers.core.waiting import poll_until
-from tests.test_qos_lab_browser import CHROMIUM, CHROMIUM_ARGS, SETTINGS, _free_port
+from tools.servers import free_port
+
+from .browsers import artifact, browser_page, require_chromium, write_lab_settings
+from .lab_page import assert_no_nbgrader_ui, new_cell, outputs, red_outputs, run_cell, wait_for_its_kernel
 
 # About 2 minutes on a busy 2-core machine: JupyterLab twice, notebook 00, the interrupt, two lab runs
 # under load.
@@ -62,8 +60,6 @@ pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VENV = os.path.join(REPO, ".venv")
-ARTIFACTS = os.path.join(REPO, "tests", "artifacts")
-NBGRADER_UI = ("Nbgrader", "Create Assignment", "Validate", "Formgrader")
 REFERENCE_NOTE = "Saved output of the course's reference run"
 
 
@@ -107,24 +103,16 @@ class Terminal:
 @pytest.fixture
 def fresh_clone(tmp_path):
     """A clone of this repository's committed state, a settings folder, and an empty working copy."""
-    if not os.path.exists(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) or set "
-                    "COURSE_CHROMIUM; Playwright must not download a browser")
-    pytest.importorskip("playwright.sync_api", reason="playwright (PyPI) is not installed")
+    require_chromium()
     if shutil.which("git") is None or shutil.which("make") is None:
         pytest.skip("git and make are needed to clone the course and run make lab")
     clone = tmp_path / "course"
     subprocess.run(["git", "clone", "--quiet", REPO, str(clone)], check=True, timeout=120)
-    for name, values in SETTINGS.items():
-        path = tmp_path / "settings" / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(values))
+    write_lab_settings(tmp_path / "settings")
     return clone, tmp_path
 
 
 def test_a_students_first_session(fresh_clone):
-    from playwright.sync_api import sync_playwright
-
     clone, scratch = fresh_clone
     work, runtime = scratch / "work", scratch / "runtime"
     env = dict(os.environ)
@@ -133,9 +121,8 @@ def test_a_students_first_session(fresh_clone):
     env.update(JUPYTER_RUNTIME_DIR=str(runtime), JUPYTERLAB_SETTINGS_DIR=str(scratch / "settings"),
                JUPYTERLAB_WORKSPACES_DIR=str(scratch / "workspaces"), BROWSER="true")  # no browser to open
     stamp = os.path.join(VENV, ".course-installed")
-    terminal = Terminal(["make", "lab", f"VENV={VENV}", f"WORK={work}", f"PORT={_free_port()}", "-o", stamp],
+    terminal = Terminal(["make", "lab", f"VENV={VENV}", f"WORK={work}", f"PORT={free_port()}", "-o", stamp],
                         cwd=str(clone), env=env)
-    os.makedirs(ARTIFACTS, exist_ok=True)
     hog = kernel = None
     try:
         # 1. One line with the address (token included) and how to stop.
@@ -147,25 +134,17 @@ def test_a_students_first_session(fresh_clone):
         assert "/lab/tree/00_welcome.ipynb?token=" in url and str(work) in lines[0], lines[0]
         assert "Ctrl-C here to stop JupyterLab and shut its kernels down" in lines[0]
         print(terminal.output)
-        with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
-            page = browser.new_page(viewport={"width": 1400, "height": 1000})
-            try:
-                started = time.monotonic()
-                _start_page(page, url)
-                print(f"start page after {time.monotonic() - started:.0f} s")
-                _run_all_of_00(page)
-                print(f"notebook 00 ran after {time.monotonic() - started:.0f} s")
-                _textbook_spin_and_interrupt(page, server_tree=lambda: _server_tree(runtime))
-                print(f"the textbook spin was interrupted after {time.monotonic() - started:.0f} s")
-                hog, kernel = _busy_machine()
-                _lab_under_load(page)
-                print(f"the lab ran under load after {time.monotonic() - started:.0f} s")
-            except Exception:
-                page.screenshot(path=os.path.join(ARTIFACTS, "first_session_failure.png"))
-                raise
-            finally:
-                browser.close()
+        with browser_page(height=1000, on_failure="first_session_failure.png") as page:
+            started = time.monotonic()
+            _start_page(page, url)
+            print(f"start page after {time.monotonic() - started:.0f} s")
+            _run_all_of_00(page)
+            print(f"notebook 00 ran after {time.monotonic() - started:.0f} s")
+            _textbook_spin_and_interrupt(page, server_tree=lambda: _server_tree(runtime))
+            print(f"the textbook spin was interrupted after {time.monotonic() - started:.0f} s")
+            hog, kernel = _busy_machine()
+            _lab_under_load(page)
+            print(f"the lab ran under load after {time.monotonic() - started:.0f} s")
         log = (work / ".lab.log").read_text(errors="replace")
         assert "nbgrader" not in log.lower() and "subdirectory" not in log, "nbgrader spoke in the log"
         # 5. Ctrl-C in the terminal: the server shuts its kernels (and their children) down, make ends well.
@@ -193,19 +172,8 @@ def _start_page(page, url: str) -> None:
     page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=120_000)
     assert page.locator(".lm-TabBar-tab.lm-mod-current", has_text="00_welcome.ipynb").count() >= 1
     page.locator(".jp-RenderedMarkdown", has_text=REFERENCE_NOTE).first.wait_for(timeout=10_000)
-    page.screenshot(path=os.path.join(ARTIFACTS, "first_session_start.png"))
+    page.screenshot(path=artifact("first_session_start.png"))
     assert_no_nbgrader_ui(page)
-
-
-def assert_no_nbgrader_ui(page) -> None:
-    """No nbgrader menu, side panel or toolbar button anywhere in the page."""
-    menus = page.locator("#jp-MainMenu .lm-MenuBar-itemLabel").all_inner_texts()
-    assert menus and "Nbgrader" not in menus, menus
-    labels = page.evaluate("""() => [...document.querySelectorAll(
-        '.lm-TabBar-tab, .jp-Toolbar-item, .jp-ToolbarButtonComponent, [title], [aria-label]')]
-        .map(e => [e.getAttribute('title'), e.getAttribute('aria-label'), e.textContent].join(' '))""")
-    found = sorted({word for label in labels for word in NBGRADER_UI if word.lower() in label.lower()})
-    assert not found, f"nbgrader UI in the student's JupyterLab: {found}"
 
 
 def _run_all_of_00(page) -> None:
@@ -220,7 +188,7 @@ def _run_all_of_00(page) -> None:
 
     assert poll_until(all_ran, 180, period=0.5), prompts.all_inner_texts()
     assert page.locator(".jp-OutputArea-output").count() > 0  # the outputs are there to look at
-    assert _red_outputs(page) == []
+    assert red_outputs(page) == []
     assert page.locator(".jp-RenderedMarkdown", has_text=REFERENCE_NOTE).count() == 0  # every output is live
 
 
@@ -257,117 +225,41 @@ def _server_tree(runtime) -> list[tuple[int, str]]:
 def _textbook_spin_and_interrupt(page, server_tree) -> None:
     """Step 3: the textbook's spin, the Interrupt button, then the same nodes and children."""
     notebook = page.locator(".jp-NotebookPanel:visible")
-    setup = _new_cell(page, notebook, CHAPTER_AGAIN)
-    _run_cell(page, notebook, setup)
-    setup_text = _outputs(setup)
+    setup = new_cell(page, notebook, CHAPTER_AGAIN)
+    run_cell(page, notebook, setup)
+    setup_text = outputs(setup)
     domain = int(re.search(r"^domain (\d+)$", setup_text, re.M).group(1))
-    before = _state(_run_cell(page, notebook, _new_cell(page, notebook, STATE)))
+    before = _state(run_cell(page, notebook, new_cell(page, notebook, STATE)))
     tree_before = server_tree()
     assert "'/listener', '/talker'" in before and "('relay', " in before, before
 
-    spin = _new_cell(page, notebook, TEXTBOOK)
-    _run_cell(page, notebook, spin, finished=False)  # it spins until interrupted
+    spin = new_cell(page, notebook, TEXTBOOK)
+    run_cell(page, notebook, spin, finished=False)  # it spins until interrupted
     assert _node_in_domain(domain, "x", timeout=60), "the textbook's node /x never joined the graph"
     notebook.locator('[data-command="notebook:interrupt-kernel"]').first.click()  # the toolbar's button
     spin.locator(".jp-InputPrompt", has_text=re.compile(r"^\s*\[\d+\]:\s*$")).wait_for(timeout=60_000)
-    shown = [line for line in _outputs(spin).splitlines() if line.strip()]
+    shown = [line for line in outputs(spin).splitlines() if line.strip()]
     print(f"the interrupted cell shows: {shown}")
     assert len(shown) == 1 and shown[0].startswith("KeyboardInterrupt"), shown
     assert "rclpy.spin(n)" in shown[0], shown  # it stopped the spin, not an import or rclpy.init()
-    after = _state(_run_cell(page, notebook, _new_cell(page, notebook, STATE)))
+    after = _state(run_cell(page, notebook, new_cell(page, notebook, STATE)))
     print(f"before the interrupt: {before}\nafter it: {after}")
     assert after == before, f"before:\n{before}\nafter:\n{after}"
     assert server_tree() == tree_before, (tree_before, server_tree())
-    page.screenshot(path=os.path.join(ARTIFACTS, "first_session_interrupt.png"))
+    page.screenshot(path=artifact("first_session_interrupt.png"))
 
     # The next course cell: 00's own (talker, listener, three messages heard), with no healing notice.
     course = notebook.locator(".jp-CodeCell").filter(has_text="timeout=5, what='three messages'").first
-    out = _outputs(_run_cell(page, notebook, course))
+    out = outputs(run_cell(page, notebook, course))
     assert re.search(r"\['hello \d+', 'hello \d+', 'hello \d+'\]", out) and "[course]" not in out, out
-    assert _red_outputs(page) == _outputs(spin).strip().splitlines()  # the interrupt's line, nothing else
+    assert red_outputs(page) == outputs(spin).strip().splitlines()  # the interrupt's line, nothing else
     page_text = notebook.inner_text()
     assert not [text for text in INTERNAL if text in page_text], [t for t in INTERNAL if t in page_text]
 
 
-def _new_cell(page, notebook, code: str):
-    """An empty code cell at the end of the notebook (a new one if needed), ``code`` pasted in."""
-    cells = notebook.locator(".jp-Notebook .jp-Cell")
-    count = cells.count()
-    cell = cells.nth(count - 1)  # by position: the last cell changes when Shift+Enter adds one
-    code_cell = "jp-CodeCell" in cell.get_attribute("class")
-    if not code_cell or cell.locator(".jp-InputArea-editor").inner_text().strip():
-        cell.locator(".jp-InputPrompt").first.click()  # selects it, in command mode
-        notebook.locator(".jp-Notebook.jp-mod-commandMode").wait_for(timeout=10_000)
-        page.keyboard.press("b")  # insert a cell below
-        cell = cells.nth(count)
-        cell.wait_for(timeout=10_000)
-    cell.locator(".jp-InputArea-editor").click()
-    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=10_000)
-    page.keyboard.insert_text(code)  # as a paste: no auto-indent or closing brackets
-    assert cell.locator(".jp-InputArea-editor").inner_text().split() == code.split(), "the paste went wrong"
-    return cell
-
-
-def _run_cell(page, notebook, cell, finished: bool = True):
-    """Shift+Enter in ``cell`` as a student does, once that is sure to run it; returns the cell.
-
-    Waits first for the notebook's own kernel to be idle (a Shift+Enter while the notebook has no
-    kernel yet may start a second one, ask which to use, or leave the cell unrun) and for the
-    cell's editor to have the focus in edit mode. Then waits for the cell to start (``[*]``), and
-    with ``finished`` for its new execution count.
-    """
-    _wait_for_its_kernel(page)
-    prompt = cell.locator(".jp-InputPrompt").first
-    shown_before = prompt.inner_text().strip()
-    cell.locator(".jp-InputArea-editor").click()
-    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=10_000)
-    notebook.locator(".jp-Notebook.jp-mod-editMode").wait_for(timeout=10_000)
-    page.keyboard.press("Shift+Enter")
-    dialog = page.locator(".jp-Dialog")
-
-    def started() -> bool:
-        assert dialog.count() == 0, f"JupyterLab asks instead of running: {dialog.all_inner_texts()}"
-        return prompt.inner_text().strip() not in ("", "[ ]:", shown_before)
-
-    assert poll_until(started, 30, period=0.1), f"the cell did not start: {prompt.inner_text()!r}"
-    if finished:
-        def ended() -> bool:
-            text = prompt.inner_text().strip()
-            return bool(re.fullmatch(r"\[\d+\]:", text)) and text != shown_before
-
-        assert poll_until(ended, 120, period=0.2), f"the cell did not end: {prompt.inner_text()!r}"
-    return cell
-
-
-def _red_outputs(page) -> list[str]:
-    """The outputs JupyterLab shows in red: errors (rendered as their traceback) and stderr."""
-    red = page.locator('.jp-OutputArea-output[data-mime-type="application/vnd.jupyter.stderr"]')
-    return red.all_inner_texts()
-
-
-def _wait_for_its_kernel(page) -> None:
-    """Until the status bar shows the current notebook's own kernel, connected and idle.
-
-    (The toolbar's execution indicator says "idle" before the notebook has a kernel at all.)
-    """
-    name = page.locator("#jp-main-dock-panel .lm-TabBar-tab.lm-mod-current .lm-TabBar-tabLabel").inner_text()
-    bar = page.locator("#jp-main-statusbar")
-
-    def ready() -> bool:
-        text = bar.inner_text()
-        return name.strip() in text and re.search(r"\|\s*Idle\b", text) is not None
-
-    assert poll_until(ready, 120, period=0.2), f"{name}'s kernel is not idle: {bar.inner_text()!r}"
-
-
-def _outputs(cell) -> str:
-    """The text of a cell's outputs (its node consoles included)."""
-    return "\n".join(cell.locator(".jp-OutputArea-output").all_inner_texts())
-
-
 def _state(cell) -> str:
     """The ``nodes ...`` and ``children ...`` lines the STATE cell printed."""
-    return "\n".join(line for line in _outputs(cell).splitlines() if line.startswith(("nodes ", "children ")))
+    return "\n".join(line for line in outputs(cell).splitlines() if line.startswith(("nodes ", "children ")))
 
 
 def _node_in_domain(domain: int, name: str, timeout: float) -> bool:
@@ -413,10 +305,10 @@ def _lab_under_load(page) -> None:
     notebook = page.locator(".jp-NotebookPanel:visible")
     notebook.locator(".jp-CodeCell").first.wait_for(timeout=90_000)
     opened = time.monotonic()
-    _wait_for_its_kernel(page)  # the cells render while the status bar still says "No Kernel | Initializing"
+    wait_for_its_kernel(page)  # the cells render while the status bar still says "No Kernel | Initializing"
     print(f"08b's kernel was idle {time.monotonic() - opened:.1f} s after its first cell showed")
     for text in ("rt = get_runtime()", "lab = qos_lab()"):  # the runtime, then the lab's cell
-        _run_cell(page, notebook, notebook.locator(".jp-CodeCell").filter(has_text=text).first)
+        run_cell(page, notebook, notebook.locator(".jp-CodeCell").filter(has_text=text).first)
     panel = notebook.locator(".qos-lab").first
     panel.wait_for(timeout=60_000)
     panel.locator("button", has_text="best-effort vs reliable under load").click()
@@ -426,7 +318,7 @@ def _lab_under_load(page) -> None:
     status.filter(has_text=re.compile(r"^\s*(Done|Stopped|The experiment failed)")).first.wait_for(
         timeout=240_000)
     panel.scroll_into_view_if_needed()
-    panel.screenshot(path=os.path.join(ARTIFACTS, "first_session_lab_under_load.png"))
+    panel.screenshot(path=artifact("first_session_lab_under_load.png"))
     text = status.inner_text()
     print(f"lab under load: {text}\n{panel.locator('.qos-lab-machine').inner_text()}")
     if "NOT FINISHED" in text:  # no repair got through for 20 s on an overloaded machine: said first

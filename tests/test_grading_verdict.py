@@ -11,16 +11,11 @@ from __future__ import annotations
 
 import csv
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
 
-from .conftest import REPO
-
-sys.path.insert(0, str(Path(REPO) / "tools"))
-
-from grading import results, verdict  # noqa: E402
+from tools.grading import results, verdict
 
 TABLE = Path(__file__).parent / "data" / "grade_all_04_services.csv"
 CHAPTER = "04_services"

@@ -27,8 +27,6 @@ import os
 import re
 import secrets
 import shutil
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -41,13 +39,14 @@ import pytest
 
 from course_helpers.core.waiting import poll_until
 from tools.container.engine import Engine, find_engine
+from tools.servers import free_port
 
-from .test_first_session_browser import assert_no_nbgrader_ui
-from .test_qos_lab_browser import CHROMIUM, CHROMIUM_ARGS
+from .browsers import artifact, browser_page, require_chromium
+from .lab_page import assert_no_nbgrader_ui, menu
+from .servers import ContainerServer, http_get, jupyterhub, shut_down_kernels
 
 IMAGE = os.environ.get("COURSE_IMAGE")
 REPO = Path(__file__).resolve().parent.parent
-ARTIFACTS = REPO / "tests" / "artifacts"
 COURSE = "/opt/ros2-course"
 HOME = "/home/jovyan"
 WORK = f"{HOME}/ros2-course-work"
@@ -193,60 +192,6 @@ def test_every_notebook_passes_strict_nbval_inside(engine):
     assert re.search(r"\d+ passed", lines[-1]) and "failed" not in lines[-1], tail
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def _get(url: str, token: str | None = None):
-    """(status, headers, body) of a GET without following redirects."""
-    class NoRedirect(urllib.request.HTTPRedirectHandler):
-        def redirect_request(self, *args, **kwargs):
-            return None
-
-    request = urllib.request.Request(url, headers={"Authorization": f"token {token}"} if token else {})
-    try:
-        with urllib.request.build_opener(NoRedirect).open(request, timeout=10) as response:
-            return response.status, response.headers, response.read().decode()
-    except urllib.error.HTTPError as error:
-        return error.code, error.headers, error.read().decode(errors="replace")
-
-
-class Server:
-    """A detached container of the image serving HTTP; stopped (and removed) by ``stop()``.
-
-    ``options`` go to ``run`` before the image, ``{port}`` in them standing for a free port of the host.
-    """
-
-    def __init__(self, engine: Engine, options: list[str], *command: str):
-        self.engine, self.port = engine, _free_port()
-        self.name = f"course-image-test-{secrets.token_hex(4)}"
-        engine.call("run", "--detach", "--name", self.name, *[o.format(port=self.port) for o in options],
-                    IMAGE, *command, check=True)
-
-    def wait_for(self, url: str, timeout: float = 90) -> None:
-        def answers() -> bool:
-            try:
-                return _get(url)[0] < 500
-            except OSError:
-                return False
-        if not poll_until(answers, timeout, period=0.5):
-            pytest.fail(f"{url} did not answer within {timeout:.0f} s; the container's log:\n"
-                        f"{self.logs()[-4000:]}")
-
-    def logs(self) -> str:
-        done = self.engine.call("logs", self.name)
-        return done.stdout + done.stderr
-
-    def stop(self) -> int:
-        """Stop the container (SIGTERM, SIGKILL after 20 s), remove it; return its exit code."""
-        self.engine.call("stop", "--time", "20", self.name, timeout=60)
-        code = self.engine.call("inspect", "--format", "{{.State.ExitCode}}", self.name).stdout.strip()
-        self.engine.call("rm", "--force", self.name)
-        return int(code or -1)
-
-
 @pytest.fixture(scope="module")
 def lab(engine):
     """The README's `docker run` line, detached: the image's default command (JupyterLab) on port 8888
@@ -255,8 +200,8 @@ def lab(engine):
     down, stops the container and removes the volume.
     """
     volume = f"course-image-test-work-{secrets.token_hex(4)}"
-    server = Server(engine, [*engine.run_options(host_network=False), "--publish", "127.0.0.1:{port}:8888",
-                             "--volume", f"{volume}:{WORK}"])
+    server = ContainerServer(engine, IMAGE, [*engine.run_options(host_network=False), "--publish",
+                                             "127.0.0.1:{port}:8888", "--volume", f"{volume}:{WORK}"])
     base, token = f"http://127.0.0.1:{server.port}", None
     try:
         server.wait_for(f"{base}/api")
@@ -266,11 +211,8 @@ def lab(engine):
         yield base, token, server
     finally:
         try:
-            status, _, body = _get(f"{base}/api/kernels", token) if token else (0, None, None)
-            for kernel in json.loads(body) if status == 200 else []:
-                urllib.request.urlopen(urllib.request.Request(
-                    f"{base}/api/kernels/{kernel['id']}", method="DELETE",
-                    headers={"Authorization": f"token {token}"}), timeout=30)
+            if token:
+                shut_down_kernels(base, token)
         finally:
             print(server.logs()[-2000:])
             code = server.stop()
@@ -280,41 +222,23 @@ def lab(engine):
 
 def test_jupyterlab_answers_over_http(lab):
     base, token, server = lab
-    status, _, body = _get(f"{base}/api/status", token)
+    status, _, body = http_get(f"{base}/api/status", token)
     assert status == 200 and "started" in json.loads(body), body
-    status, _, body = _get(f"{base}/api/contents", token)
+    status, _, body = http_get(f"{base}/api/contents", token)
     names = {item["name"] for item in json.loads(body)["content"]} if status == 200 else set()
     assert "00_welcome.ipynb" in names, (status, body)
-    status, _, body = _get(f"{base}/lab?token={token}")
+    status, _, body = http_get(f"{base}/lab?token={token}")
     assert status == 200 and "JupyterLab" in body, status
-    assert _get(f"{base}/api/contents")[0] == 403, "JupyterLab answers without its token"
+    assert http_get(f"{base}/api/contents")[0] == 403, "JupyterLab answers without its token"
     assert f"working copy {WORK} is up to date" in server.logs()
 
 
 @pytest.mark.browser
 def test_notebook_00_runs_in_a_browser(lab):
-    if not os.path.exists(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) or "
-                    "set COURSE_CHROMIUM to an installed Chromium-based browser; Playwright must not "
-                    "download one")
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright (PyPI) is not installed")
+    require_chromium()
     base, token, _ = lab
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    with sync_api.sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
-        page = browser.new_page(viewport={"width": 1400, "height": 1100})
-        try:
-            _run_notebook_00(page, base, token)
-        except Exception:
-            page.screenshot(path=str(ARTIFACTS / "image_notebook_00_failure.png"))
-            raise
-        finally:
-            browser.close()
-
-
-def _menu(page, menu: str, item: str) -> None:
-    page.locator(".lm-MenuBar-item", has_text=re.compile(rf"^\s*{menu}\s*$")).click()
-    page.locator(".lm-Menu-item", has_text=item).first.click()
+    with browser_page(on_failure="image_notebook_00_failure.png") as page:
+        _run_notebook_00(page, base, token)
 
 
 def _put_setting(base: str, token: str, plugin: str, values: dict) -> None:
@@ -334,12 +258,12 @@ def _run_notebook_00(page, base: str, token: str) -> None:
     page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=90_000)
     assert_no_nbgrader_ui(page)  # the image's JupyterLab is the student's, as make lab's
     prompts = page.locator(".jp-Notebook .jp-CodeCell .jp-InputPrompt")
-    _menu(page, "Edit", "Clear Outputs of All Cells")  # so that every output seen below is new
+    menu(page, "Edit", "Clear Outputs of All Cells")  # so that every output seen below is new
     cells = prompts.count()
     assert cells > 0 and page.locator(".jp-Notebook .jp-OutputArea-output").count() == 0
     assert not any(re.search(r"\d", text) for text in prompts.all_inner_texts()), "outputs were not cleared"
     started = time.monotonic()
-    _menu(page, "Run", "Run All Cells")
+    menu(page, "Run", "Run All Cells")
 
     def finished() -> bool:  # every cell ran, or the run stopped (an error stops "Run All")
         texts = prompts.all_inner_texts()
@@ -350,7 +274,7 @@ def _run_notebook_00(page, base: str, token: str) -> None:
     poll_until(finished, 180, period=0.5)
     seconds = time.monotonic() - started
     page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=60_000)
-    page.screenshot(path=str(ARTIFACTS / "image_notebook_00.png"), full_page=True)
+    page.screenshot(path=artifact("image_notebook_00.png"), full_page=True)
     texts = prompts.all_inner_texts()
     errors = page.locator(".jp-OutputArea-output[data-mime-type='application/vnd.jupyter.stderr']")
     outputs = "\n".join(page.locator(".jp-Notebook .jp-OutputArea").all_inner_texts())
@@ -412,63 +336,46 @@ def test_jupyterhub_runs_the_image_as_a_single_user_server(engine):
         pytest.skip("configurable-http-proxy (npm) is missing: npm install --prefix .venv/node "
                     "configurable-http-proxy@5.3.0")
     folder = Path(tempfile.mkdtemp(prefix="course-image-hub-"))
-    token, port = secrets.token_hex(16), _free_port()
+    token, port = secrets.token_hex(16), free_port()
     settings = {"run": engine.command("run", "--rm", *engine.run_options()), "image": IMAGE,
                 "container": f"course-image-hub-{secrets.token_hex(4)}", "proxy": proxy, "dir": str(folder),
-                "token": token, "port": port, "hub_port": _free_port(), "proxy_api_port": _free_port()}
+                "token": token, "port": port, "hub_port": free_port(), "proxy_api_port": free_port()}
     (folder / "jupyterhub_config.py").write_text(HUB_CONFIG)
-    log = open(folder / "hub.log", "wb")  # closed in the finally below
-    hub = subprocess.Popen([str(Path(sys.executable).parent / "jupyterhub"), "-f", "jupyterhub_config.py"],
-                           cwd=folder, env=dict(os.environ, COURSE_IMAGE_HUB=json.dumps(settings)),
-                           stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     base = f"http://127.0.0.1:{port}"
 
     def hub_log() -> str:
-        if not log.closed:
-            log.flush()
         return (folder / "hub.log").read_text(errors="replace")
 
     def server() -> dict | None:
         return _hub_api(base, token, "/users/student")[1]["servers"].get("")
 
+    command = [str(Path(sys.executable).parent / "jupyterhub"), "-f", "jupyterhub_config.py"]
+    hub_env = dict(os.environ, COURSE_IMAGE_HUB=json.dumps(settings))
     try:
-        def hub_answers() -> bool:
-            try:
-                return _get(f"{base}/hub/api")[0] == 200
-            except OSError:
-                return False
-        if not poll_until(lambda: hub.poll() is not None or hub_answers(), 90, period=0.5):
-            pytest.fail(f"the hub did not start:\n{hub_log()[-4000:]}")
-        assert hub.poll() is None, hub_log()[-4000:]
-        started = time.monotonic()
-        assert _hub_api(base, token, "/users/student/server", method="POST")[0] in (201, 202)
-        if not poll_until(lambda: (server() or {}).get("ready"), 180, period=1):
-            pytest.fail(f"the student's server did not become ready:\n{hub_log()[-6000:]}")
-        print(f"the hub started the image's single-user server in {time.monotonic() - started:.1f} s")
-        prefix = f"{base}/user/student"
-        # Through the proxy; the server asks the hub whether the token may use it.
-        status, _, body = _get(f"{prefix}/api/status", token)
-        assert status == 200 and "started" in json.loads(body), (status, body)
-        status, _, body = _get(f"{prefix}/api/contents/ros2-course-work", token)
-        names = {item["name"] for item in json.loads(body)["content"]} if status == 200 else set()
-        assert "00_welcome.ipynb" in names, (status, body[:2000])
-        status, headers, _ = _get(f"{prefix}/lab")  # no login: off to the hub's OAuth
-        assert status == 302 and "/hub/api/oauth2/authorize" in headers.get("Location", ""), (status, headers)
-        assert f"working copy {WORK} is up to date" in hub_log()
-        assert _hub_api(base, token, "/users/student/server", method="DELETE")[0] in (202, 204)
-        assert poll_until(lambda: server() is None, 60, period=1), "the hub did not stop the server"
-        def containers() -> str:
-            return engine.call("ps", "--all", "--filter", f"name={settings['container']}",
-                               "--format", "{{.Names}}").stdout.strip()
-        assert poll_until(lambda: not containers(), 30), f"the server's container is left: {containers()}"
+        with jupyterhub(command, base, folder / "hub.log", cwd=folder, env=hub_env):
+            started = time.monotonic()
+            assert _hub_api(base, token, "/users/student/server", method="POST")[0] in (201, 202)
+            if not poll_until(lambda: (server() or {}).get("ready"), 180, period=1):
+                pytest.fail(f"the student's server did not become ready:\n{hub_log()[-6000:]}")
+            print(f"the hub started the image's single-user server in {time.monotonic() - started:.1f} s")
+            prefix = f"{base}/user/student"
+            # Through the proxy; the server asks the hub whether the token may use it.
+            status, _, body = http_get(f"{prefix}/api/status", token)
+            assert status == 200 and "started" in json.loads(body), (status, body)
+            status, _, body = http_get(f"{prefix}/api/contents/ros2-course-work", token)
+            names = {item["name"] for item in json.loads(body)["content"]} if status == 200 else set()
+            assert "00_welcome.ipynb" in names, (status, body[:2000])
+            status, headers, _ = http_get(f"{prefix}/lab")  # no login: off to the hub's OAuth
+            assert status == 302 and "/hub/api/oauth2/authorize" in headers.get("Location", ""), \
+                (status, headers)
+            assert f"working copy {WORK} is up to date" in hub_log()
+            assert _hub_api(base, token, "/users/student/server", method="DELETE")[0] in (202, 204)
+            assert poll_until(lambda: server() is None, 60, period=1), "the hub did not stop the server"
+            def containers() -> str:
+                return engine.call("ps", "--all", "--filter", f"name={settings['container']}",
+                                   "--format", "{{.Names}}").stdout.strip()
+            assert poll_until(lambda: not containers(), 30), f"the server's container is left: {containers()}"
     finally:
-        os.killpg(hub.pid, signal.SIGTERM)
-        try:
-            hub.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(hub.pid, signal.SIGKILL)
-            hub.wait(timeout=10)
         engine.call("rm", "--force", settings["container"])
-        log.close()
         print(hub_log()[-1500:])
         shutil.rmtree(folder, ignore_errors=True)

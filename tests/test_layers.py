@@ -29,8 +29,8 @@ ROOT_RANK = 6  # course_helpers/__init__.py: the entry point may use every layer
 MAX_MODULE_LINES = 500
 
 # --- what core/ may import besides the standard library: two named lists
-# ROS 2's own Python packages, from the Jazzy wheels.
-ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser", "rosgraph_msgs"}  # rosgraph_msgs: /clock
+# ROS 2's own Python packages, from the Jazzy wheels (rosgraph_msgs: the /clock message of sim_clock.py).
+ROS_PACKAGES = {"rclpy", "rcl_interfaces", "rosidl_parser", "rosgraph_msgs"}
 # A few other pinned libraries, each for one job and only in the modules named.
 CORE_EXTRAS = {
     "yaml": ({"course_helpers.core.msg_yaml", "course_helpers.core.bags.writer",
@@ -44,11 +44,15 @@ CORE_EXTRAS = {
     "numpy": ({"course_helpers.core.build_interfaces"}, "the rosidl build needs NumPy's C headers"),
     "psutil": ({"course_helpers.core.domains", "course_helpers.core.supervisor",
                 "course_helpers.core.udp_sockets", "course_helpers.core.processes",
-                "course_helpers.core.other_kernels", "course_helpers.core.machine_load"},
+                "course_helpers.core.other_kernels", "course_helpers.core.machine_load",
+                "course_helpers.core.kernel_shutdown"},
                "who holds a domain; the descendants a child ends when it exits; a process's UDP "
                "sockets; the program under a child's supervisor; the other kernels of the same "
-               "Jupyter server; the machine's CPU time and this process tree's during a measurement"),
+               "Jupyter server; the machine's CPU time and this process tree's during a measurement; "
+               "a kernel's id in its command line, and waiting until a shut-down kernel has ended"),
     "IPython": ({"course_helpers.core.console"}, "a node's console under its notebook cell"),
+    "jupyter_core": ({"course_helpers.core.kernel_shutdown"},
+                     "Jupyter's runtime folder, where this kernel's server keeps its port and token"),
 }
 
 # --- imports by name at run time

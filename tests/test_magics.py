@@ -352,6 +352,12 @@ def test_bad_commands_print_usage_not_tracebacks(ros2):
     for command in ("node", "topic", "service", "action", "param", "interface"):
         assert command in out
 
+    assert "did you mean" not in out  # nothing is close to 'bogus'
+    code, out = ros2("nodez list")  # a typo: the closest command is named
+    assert code == 2 and "invalid choice: 'nodez'" in out and "did you mean 'node'?" in out, out
+    code, out = ros2("topic lst")
+    assert code == 2 and "did you mean 'list'?" in out, out
+
     code, out = ros2("topic echo")
     assert code == 2 and "usage: ros2 topic echo" in out and "required: topic_name" in out
     code, out = ros2("topic hz /x --window 0")

@@ -24,10 +24,10 @@ from .nbgrader_support import (
     LAST_CELL,
     assert_nothing_left,
     grade_cells,
-    grade_students,
+    graded_students,
     points,
     reason,
-    release_course,
+    released_course,
     results,
     solutions,
     source,
@@ -38,21 +38,17 @@ from .nbgrader_support import (
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 
 
-@pytest.fixture(scope="module")
-def course(tmp_path_factory):
-    return release_course(tmp_path_factory)
-
-
-@pytest.fixture(scope="module")
-def graded(course, tmp_path_factory):
-    course_dir, _ = course
+def _students(course_dir) -> dict:
     solved = solutions(course_dir)
-    students = {
+    return {
         "alice": solved,
         "bob": {EXTRA: LAST_CELL},  # hands in the starting code, and a process outside any exercise
         "carol": {EX1: HANGS, EX2: solved[EX2]},
     }
-    return grade_students(course_dir, students, tmp_path_factory)
+
+
+course = released_course()
+graded = graded_students(_students)
 
 
 def test_every_exercise_of_the_notebooks_gets_its_reference_solution():
@@ -115,7 +111,7 @@ def test_scores_reasons_and_feedback(graded):
 
 
 def test_grade_alls_verdict_on_this_grade_table(course, graded):
-    """``grade-all``'s verdict (``grading.verdict``) on this real table: alice's reference and bob's
+    """``grade-all``'s verdict (``tools.grading.verdict``) on this real table: alice's reference and bob's
     starting code are right; carol taken for a reference, or alice for starting code, is caught."""
     course_dir, _ = course
     rows, _, out, _ = graded

@@ -21,10 +21,10 @@ from .nbgrader_support import (
     BEGIN,
     assert_nothing_left,
     grade_cells,
-    grade_students,
+    graded_students,
     points,
     reason,
-    release_course,
+    released_course,
     solved,
     student_build,
 )
@@ -36,21 +36,16 @@ EXERCISE = "ex1_FleetSafetyMonitor"
 CELL_TIMEOUT_S = 90  # the slowest cell of chapter 10 (the exercise's check) takes about 10 s
 
 
-@pytest.fixture(scope="module")
-def course(tmp_path_factory):
-    return release_course(tmp_path_factory, "10")
-
-
-@pytest.fixture(scope="module")
-def graded(course, tmp_path_factory):
-    course_dir, _ = course
+def _students(course_dir) -> dict:
     source = json.loads((course_dir / "source" / CHAPTER / f"{CHAPTER}.ipynb").read_text())
     reference = solved(grade_cells(source)[EXERCISE])
     volatile = reference.replace("self.on_fleet_estop, ESTOP_QOS)", "self.on_fleet_estop, 10)")
     assert volatile != reference, "the reference changed: write the wrong answer anew"
-    students = {"bob": {EXERCISE: volatile}}
-    return grade_students(course_dir, students, tmp_path_factory, chapter=CHAPTER,
-                          cell_timeout=CELL_TIMEOUT_S)
+    return {"bob": {EXERCISE: volatile}}
+
+
+course = released_course("10")
+graded = graded_students(_students, chapter=CHAPTER, cell_timeout=CELL_TIMEOUT_S)
 
 
 def test_the_release_holds_the_starting_code_and_no_solution(course):

@@ -21,34 +21,30 @@ from .nbgrader_support import (
     assert_no_process_left,
     assert_nothing_left,
     grade,
-    grade_students,
+    graded_students,
     hand_in,
     points,
     reason,
-    release_course,
+    released_course,
     solutions,
 )
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
 
 
-@pytest.fixture(scope="module")
-def course(tmp_path_factory):
-    return release_course(tmp_path_factory)
-
-
-@pytest.fixture(scope="module")
-def graded(course, tmp_path_factory):
-    course_dir, _ = course
+def _students(course_dir) -> dict:
     solved = solutions(course_dir)
     # the reference class comes after the starting code in the cell: change the reference
     head, tail = solved[EX2].rsplit("        super().__init__('sum_relay')\n", 1)
     runaway = f"import subprocess\n{head}        super().__init__('sum_relay')\n{RUNAWAY_LINE}{tail}"
-    students = {
+    return {
         "dave": {EX1: CRASHES, EX2: solved[EX2]},
         "erin": {EX1: FLOODS, EX2: runaway},
     }
-    return grade_students(course_dir, students, tmp_path_factory)
+
+
+course = released_course()
+graded = graded_students(_students)
 
 
 def test_a_dead_flooding_or_runaway_exercise_scores_zero_with_its_reason(graded):

@@ -48,7 +48,7 @@ def test_a_new_runtime_names_the_other_notebooks_that_run_ros():
         assert len(lines) == 1, out
         expected = f"[course] 1 other notebook of this Jupyter server runs ROS: {described}."
         assert lines[0].startswith(expected), lines
-        assert "Running panel" in lines[0] and "Kernel > Shut Down Kernel" in lines[0], lines
+        assert "Running panel" in lines[0] and "rt.shutdown_other_kernels()" in lines[0], lines
         assert f"others [{described!r}]" in out, out
         out, error = new.run("rt.show_status()")
         assert f"other_kernels      {described}" in out.splitlines(), out

@@ -97,8 +97,7 @@ def test_stopping_a_program_stops_its_children_too():
 
 
 KERNEL = f"""
-import sys, time
-sys.path.insert(0, {REPO!r})
+import time
 from course_helpers.core import processes
 processes.start('program', processes.program_argv('sh', '-c', 'sleep {LONG_S} & sleep {LONG_S} & wait'),
                 group='test', channel=False)

@@ -12,135 +12,28 @@ is never rewritten, and every kernel is shut down at the end.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import re
-import secrets
-import shutil
-import signal
-import socket
-import subprocess
-import sys
-import tempfile
 import time
-import urllib.request
 
 import pytest
 
 from course_helpers.core.waiting import poll_until
 
+from .browsers import artifact, browser_page, require_chromium
+from .servers import jupyter_lab
+
 pytestmark = pytest.mark.browser
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 NOTEBOOK = os.path.join(REPO, "notebooks", "08b_qos_lab.ipynb")
-ARTIFACTS = os.path.join(REPO, "tests", "artifacts")
-# Debian's chromium by default; COURSE_CHROMIUM may name another Chromium-based browser that is
-# already installed (GitHub's Ubuntu runners have /usr/bin/google-chrome).
-CHROMIUM = os.environ.get("COURSE_CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
-SETTINGS = {  # JupyterLab user settings for the test: no autosave, every cell in the DOM
-    "@jupyterlab/docmanager-extension/plugin.jupyterlab-settings": {"autosave": False},
-    "@jupyterlab/notebook-extension/tracker.jupyterlab-settings": {"windowingMode": "none"},
-    "@jupyterlab/apputils-extension/notification.jupyterlab-settings": {"fetchNews": "false",
-                                                                       "checkForUpdates": False},
-}
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def _api(base: str, token: str, path: str, method: str = "GET"):
-    request = urllib.request.Request(f"{base}{path}", method=method,
-                                     headers={"Authorization": f"token {token}"})
-    with urllib.request.urlopen(request, timeout=10) as response:
-        body = response.read()
-    return json.loads(body) if body else None
-
-
-@pytest.fixture
-def jupyter_lab():
-    """A JupyterLab server on a free port: yields (base_url, token); stops it and its kernels after."""
-    if not os.path.exists(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} is missing: install Debian's chromium (apt-get install chromium) "
-                    "or set COURSE_CHROMIUM to an installed Chromium-based browser to run the browser "
-                    "tests; Playwright must not download a browser")
-    pytest.importorskip("playwright.sync_api", reason="playwright (PyPI) is not installed")
-    workdir = tempfile.mkdtemp(prefix="qos-lab-browser-")
-    for name, values in SETTINGS.items():
-        path = os.path.join(workdir, "settings", name)
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        with open(path, "w", encoding="utf-8") as handle:
-            json.dump(values, handle)
-    port, token = _free_port(), secrets.token_hex(16)
-    env = dict(os.environ)
-    env.pop("ROS_DOMAIN_ID", None)  # the kernel reserves its own domain
-    env["JUPYTER_CONFIG_DIR"] = os.path.join(workdir, "config")
-    log = open(os.path.join(workdir, "jupyter.log"), "wb")  # closed in the finally below
-    server = subprocess.Popen(
-        [sys.executable, "-m", "jupyter", "lab", "--no-browser", f"--port={port}",
-         "--ServerApp.ip=127.0.0.1", f"--ServerApp.token={token}", "--notebook-dir=notebooks",
-         f"--LabApp.user_settings_dir={os.path.join(workdir, 'settings')}",
-         f"--LabApp.workspaces_dir={os.path.join(workdir, 'workspaces')}",
-         f"--FileCheckpoints.root_dir={os.path.join(workdir, 'checkpoints')}",  # not in notebooks/
-         "--LabApp.extension_manager=readonly", "--LabApp.news_url=None",
-         "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
-         *(["--allow-root"] if os.geteuid() == 0 else [])],
-        cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    base = f"http://127.0.0.1:{port}"
-    def answers() -> bool:
-        try:
-            _api(base, token, "/api/status")
-            return True
-        except OSError:
-            return False
-
-    try:
-        if not poll_until(lambda: server.poll() is not None or answers(), 60, period=0.3) \
-                or server.poll() is not None:
-            log.flush()
-            with open(log.name, "rb") as handle:
-                pytest.fail(f"JupyterLab did not start:\n{handle.read()[-3000:].decode()}")
-        yield base, token
-    finally:
-        try:
-            for kernel in _api(base, token, "/api/kernels") or []:
-                _api(base, token, f"/api/kernels/{kernel['id']}", method="DELETE")
-            remaining = _api(base, token, "/api/kernels")
-        except OSError:
-            remaining = None
-        try:
-            os.killpg(server.pid, signal.SIGTERM)
-            server.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(server.pid, signal.SIGKILL)
-            server.wait(timeout=5)
-        except ProcessLookupError:
-            pass
-        log.close()
-        shutil.rmtree(workdir, ignore_errors=True)
-        assert not remaining, f"kernels left running: {remaining}"
-
-
-def test_lab_runs_in_a_real_browser(jupyter_lab):
-    from playwright.sync_api import sync_playwright
-
-    base, token = jupyter_lab
+def test_lab_runs_in_a_real_browser():
+    require_chromium()
     before = hashlib.sha256(open(NOTEBOOK, "rb").read()).hexdigest()
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
-        page = browser.new_page(viewport={"width": 1400, "height": 1100})
-        try:
-            _run_the_lab(page, base, token)
-        except Exception:
-            page.screenshot(path=os.path.join(ARTIFACTS, "qos_lab_failure.png"))
-            raise
-        finally:
-            browser.close()
+    with jupyter_lab() as lab, browser_page(on_failure="qos_lab_failure.png") as page:
+        _run_the_lab(page, lab.base, lab.token)
     after = hashlib.sha256(open(NOTEBOOK, "rb").read()).hexdigest()
     assert before == after, "the browser session changed the committed notebook"
 
@@ -165,7 +58,7 @@ def _run_the_lab(page, base: str, token: str) -> None:
     poll_until(lambda: sources.add(image.get_attribute("src")) or rows.count() > rows_before, 60, period=0.05)
     _wait_until_finished(panel)
     _screenshot(panel, "qos_lab_panel.png")
-    page.screenshot(path=os.path.join(ARTIFACTS, "qos_lab_page.png"))
+    page.screenshot(path=artifact("qos_lab_page.png"))
     status = panel.locator(".qos-lab-status").inner_text()
     print(f"{len(sources) - 1} plot frames seen in the browser in {time.monotonic() - started:.1f} s; "
           f"status: {status}")
@@ -216,7 +109,7 @@ def _screenshot(panel, name: str) -> None:
     found again (the picture is for readers of tests/artifacts, not a check)."""
     for attempt in range(3):
         try:
-            panel.screenshot(path=os.path.join(ARTIFACTS, name), timeout=30_000)
+            panel.screenshot(path=artifact(name), timeout=30_000)
             return
         except Exception as error:  # playwright's Error: "Element is not attached to the DOM"
             if "not attached" not in str(error) or attempt == 2:

@@ -18,7 +18,7 @@ def make_quiz() -> Quiz:
     return Quiz("Chapter 01 <graph>", [
         Question("Which process must run before ROS 2 nodes can find each other?", [
             Choice("roscore", False, "That was ROS 1's master; ROS 2 has none."),
-            Choice("None: discovery is peer to peer", True, "Right: DDS participants announce themselves."),
+            Choice("None: discovery is peer to peer", True, "DDS participants announce themselves."),
         ]),
         Question("What does a topic carry?", [
             Choice("Requests & replies", False, "That's a service (request -> response)."),
@@ -121,6 +121,15 @@ def test_every_quiz_file_belongs_to_a_notebook_and_every_notebook_has_one():
     assert set(Quiz.names()) == notebooks
     for name in Quiz.names():
         assert Quiz.load(name).name == name
+
+
+def test_no_feedback_repeats_the_verdict_the_quiz_shows_before_it():
+    """A pick shows "Correct." or "Not quite." and then the choice's feedback: a feedback that starts
+    with a verdict of its own would read "Correct. Right: ..."."""
+    verdicts = ("right", "correct", "wrong", "not quite", "yes", "no")
+    repeated = [(name, c.feedback) for name in Quiz.names() for q in Quiz.load(name).questions
+                for c in q.choices if c.feedback.lower().split(":")[0].split(".")[0].strip() in verdicts]
+    assert repeated == []
 
 
 def test_answer_returns_the_choice_with_its_feedback_and_grade_counts():
@@ -308,7 +317,22 @@ def test_html_rendering_colours_marks_and_escapes():
     assert "Hint: use create_timer, not time.sleep" in page
     good = CheckReport("Exercise 3.2")
     good.add("works", True, hint="hidden when passed")
-    assert "passed</b>" in good._repr_html_() and "Hint" not in good._repr_html_()
+    assert "passed (1/1 criteria)</b>" in good._repr_html_() and "Hint" not in good._repr_html_()
+    assert "not passed yet (1/2 criteria)</b>" in page  # the count the text report has
+
+
+def test_a_hint_shared_by_several_failed_cases_is_shown_once():
+    report = CheckReport("Exercise 3.4")
+    report.add("tilt of 10 degrees", False, "got 0.0", hint="atan2(y, x) is in radians")
+    report.add("tilt of 45 degrees", False, "got 0.0", hint="atan2(y, x) is in radians")
+    report.add("level", True, hint="atan2(y, x) is in radians")
+    report.add("rate", False, hint="one message per sample")
+    lines = report.summary().splitlines()
+    assert [line.strip() for line in lines if "hint:" in line] == [
+        "hint: atan2(y, x) is in radians", "hint: one message per sample"], lines
+    assert lines.index("         hint: atan2(y, x) is in radians") == 2  # under the first case it explains
+    page = report._repr_html_()
+    assert page.count("Hint: atan2(y, x) is in radians") == 1 and page.count("Hint: one message") == 1
 
 
 def test_pretty_printing_uses_the_summary():

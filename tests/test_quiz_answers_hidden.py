@@ -13,7 +13,6 @@ from __future__ import annotations
 import copy
 import glob
 import html
-import importlib.util
 import json
 import os
 import re
@@ -21,6 +20,7 @@ import re
 import pytest
 
 from course_helpers.notebook.quiz import Quiz
+from tools import build_book
 
 from .conftest import REPO
 
@@ -169,20 +169,13 @@ def test_the_leak_check_finds_each_way_an_answer_can_show():
     assert "widget state holds the feedback" in leaks_after(widget("HTMLModel", value=shown))
 
 
-def _build_book():
-    spec = importlib.util.spec_from_file_location("build_book", os.path.join(REPO, "tools", "build_book.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[os.path.basename(p) for p in NOTEBOOKS])
 def test_the_site_copy_of_each_notebook_shows_its_quiz_with_the_answers(path):
     """``make book`` stages each notebook with its quiz's answers (``tests/test_book_site.py`` checks
     the built pages in a browser); the committed notebook stays as it was."""
     notebook, quiz = _load(path)
     staged = copy.deepcopy(notebook)
-    assert _build_book().with_answers(staged) == [quiz.name]
+    assert build_book.with_answers(staged) == [quiz.name]
     assert _quiz_output(staged)["data"]["text/html"] == quiz.answers_html()
     assert "application/vnd.jupyter.widget-view+json" not in _quiz_output(staged)["data"]
     assert [c for c in staged["cells"] if "Quiz" not in "".join(c["source"])] == \

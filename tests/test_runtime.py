@@ -229,3 +229,23 @@ def test_a_failing_callback_is_reported_and_others_keep_running(rt):
     listener = rt.add(Listener)
     rt.wait_until(lambda: len(listener.heard) >= 3 and len(rt.errors) > errors_before, 5)
     assert "boom" in rt.errors[-1]
+
+
+def test_show_status_lists_a_textbook_node_of_the_default_context_as_not_the_courses(rt, capsys):
+    import rclpy
+    from rclpy.node import Node
+
+    rclpy.init()  # a textbook paste: the default context, outside the course's runtime
+    try:
+        node = Node("x")
+        rt.show_status()
+        lines = capsys.readouterr().out.splitlines()
+        marked = [line for line in lines if line.startswith("not_the_courses")]
+        assert marked == ["not_the_courses    /x (rclpy's default context, not the course's: "
+                          "node.destroy_node() ends it)"], lines
+        assert "/x" not in rt.nodes()
+        node.destroy_node()
+        rt.show_status()
+        assert "not_the_courses" not in capsys.readouterr().out  # nothing outside the course is left
+    finally:
+        rclpy.try_shutdown()

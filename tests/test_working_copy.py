@@ -14,7 +14,6 @@ A copy made before the notes existed gets them on the outputs still exactly the 
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import shutil
@@ -26,6 +25,8 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
+from tools import working_copy
+
 REPO = Path(__file__).resolve().parent.parent
 TOOL = REPO / "tools" / "working_copy.py"
 WELCOME = "00_welcome.ipynb"
@@ -35,16 +36,6 @@ TITLE, PICTURE, WAITING, REMOVE_ALL, QUIZ = "a81201af", "9ebc560f", "5aef8827", 
 DIAGRAM = "b2f81273"  # a code cell that needs no ROS (it draws the runtime diagram): the student runs it
 STUDENT_CELL = "my-own-cell"
 COURSE_CELL = "course-new-cell"
-
-
-def _tool():
-    spec = importlib.util.spec_from_file_location("working_copy", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-working_copy = _tool()
 
 
 def _as_received(path: Path) -> bytes:

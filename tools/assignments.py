@@ -17,14 +17,14 @@ checkers import there and that no reference solution reached the release.
 ``grade`` takes a folder with one folder per student, holding ``<assignment>/<assignment>.ipynb``
 (nbgrader's submitted layout) or ``<assignment>.ipynb``. Each submission is autograded by
 nbgrader in a process of its own with a fresh kernel, its own ROS domain and temporary folder,
-a timeout per cell and a wall clock for the whole run (:mod:`grading.isolation`,
-:mod:`grading.guarded`); what it leaves running is killed and noted. It writes
+a timeout per cell and a wall clock for the whole run (:mod:`tools.grading.isolation`,
+:mod:`tools.grading.guarded`); what it leaves running is killed and noted. It writes
 ``graded/<assignment>/grades.csv`` (points and the reason for every lost point),
 ``feedback/<student>.html`` (nbgrader's feedback) and ``log.json`` under the course directory.
 
 ``grade-all`` proves the whole chain on every chapter (in ``build/grade-all``): it releases them, hands
-in each one's untouched starting code and its reference (:mod:`grading.handin`), grades both with
-``grade`` and checks the table (:mod:`grading.verdict`): the reference earns every point, the starting
+in each one's untouched starting code and its reference (:mod:`tools.grading.handin`), grades both with
+``grade`` and checks the table (:mod:`tools.grading.verdict`): the reference earns every point, the starting
 code less on every exercise. Exit status 1, naming the chapter and exercise, when it does not.
 """
 
@@ -38,9 +38,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from grading import handin, isolation, results, source, student_build, verdict  # noqa: E402
+from tools.grading import handin, isolation, results, source, student_build, verdict
 
 COURSE_DIR = source.REPO / "assignments"
 GRADE_ALL_DIR = source.REPO / "build" / "grade-all"  # generated, not committed
@@ -53,8 +51,9 @@ SUMMARY_PREFIX = ": "  # CheckReport.summary(): "<exercise>: PASSED (k/n criteri
 
 
 def _api(course_dir: Path):
-    from grading.autograde_one import grading_config
     from nbgrader.apps import NbGraderAPI
+
+    from tools.grading.autograde_one import grading_config
 
     return NbGraderAPI(config=grading_config(str(course_dir)))
 
@@ -327,7 +326,7 @@ def _minutes(seconds: float) -> str:
 def grade_all(chapters: list[str] | None, course_dir: Path, timeout: int, wall_clock: int,
               release_timeout: int) -> int:
     """Release the chosen chapters (all with a graded exercise by default), grade each one's untouched
-    starting code and then its reference, and judge the grade tables (:mod:`grading.verdict`).
+    starting code and then its reference, and judge the grade tables (:mod:`tools.grading.verdict`).
     Prints the table and each chapter's time; returns 1 if anything is wrong, with what and where."""
     if course_dir == COURSE_DIR.resolve():
         raise SystemExit(f"grade-all grades made-up students: give it a course directory other than "

@@ -34,14 +34,10 @@ import argparse
 import json
 import os
 import signal
-import subprocess
 import sys
-import urllib.request
 from pathlib import Path
 
-import working_copy  # tools/working_copy.py, beside this file
-
-from course_helpers.core.waiting import poll_until
+from tools import servers, working_copy
 
 REPO = Path(__file__).resolve().parent.parent
 STUDENT_CONFIG = REPO / "tools" / "jupyterlab" / "student"
@@ -82,13 +78,7 @@ def runtime_info(pid: int) -> dict | None:
 
 def answers(info: dict) -> bool:
     """True when the server described by ``info`` answers its REST API."""
-    request = urllib.request.Request(f"{_local_base(info)}api/status",
-                                     headers={"Authorization": f"token {info['token']}"})
-    try:
-        with urllib.request.urlopen(request, timeout=5) as response:
-            return response.status == 200
-    except OSError:
-        return False
+    return servers.answers(_local_base(info).rstrip("/"), info["token"])
 
 
 def open_url(info: dict, path: str) -> str:
@@ -150,23 +140,10 @@ def _raise_stop(signum, _frame):
     raise _Stop(signal.Signals(signum).name)
 
 
-def stop_server(server: subprocess.Popen) -> int:
-    """Stop the server as its own SIGTERM handler does (kernels first); force it after STOP_TIMEOUT_S."""
-    if server.poll() is None:
-        server.send_signal(signal.SIGTERM)
-        try:
-            server.wait(timeout=STOP_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            os.killpg(server.pid, signal.SIGKILL)  # its own session: the server and what it left behind
-            server.wait()
-    return server.returncode
-
-
-def _log_tail(path: Path, lines: int = 25) -> str:
-    try:
-        return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
-    except OSError:
-        return "(no log)"
+def stop_server(server: servers.ServerProcess) -> int:
+    """Stop the server as its own SIGTERM handler does (kernels first); its whole session is killed
+    after STOP_TIMEOUT_S (the server and what it left behind)."""
+    return server.stop(STOP_TIMEOUT_S, whole_session=False)
 
 
 def _sync(work: Path) -> None:
@@ -212,33 +189,31 @@ def main(argv: list[str] | None = None) -> int:
 
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_stop)
-    with TerminalForeground(), open(log_path, "ab") as log:
+    with TerminalForeground():
         server = None
         try:
             # A session of its own: the terminal's Ctrl-C reaches only this launcher, which stops
             # the server without JupyterLab's "Shut down this Jupyter server (y/[n])?" prompt.
-            server = subprocess.Popen(command, cwd=cwd, env=env, stdin=subprocess.DEVNULL, stdout=log,
-                                      stderr=subprocess.STDOUT, start_new_session=True)
+            server = servers.ServerProcess(command, log_path, cwd=cwd, env=env, what="JupyterLab")
             info: dict = {}
 
             def ready() -> bool:
-                if server.poll() is not None:
-                    return True
                 info.update(runtime_info(server.pid) or {})
                 return bool(info) and answers(info)
 
-            poll_until(ready, START_TIMEOUT_S, period=0.2)
-            if server.poll() is not None or not info or not answers(info):
-                print(f"JupyterLab did not start. The end of its log ({log_path}):\n{_log_tail(log_path)}",
+            if not server.wait_until(ready, START_TIMEOUT_S, period=0.2):
+                server.stop(STOP_TIMEOUT_S, whole_session=False)
+                print(f"JupyterLab did not start. The end of its log ({log_path}):\n{server.log_tail(25)}",
                       file=sys.stderr)
                 return 1
             where = f"your work is saved in {work}" if not args.instructor else f"serving {root}"
             print(f"Open {open_url(info, start)} in your browser ({where}). "
                   "Press Ctrl-C here to stop JupyterLab and shut its kernels down.", flush=True)
-            server.wait()
-            print(f"JupyterLab stopped on its own (exit code {server.returncode}); its log is {log_path}.",
+            server.process.wait()
+            code = server.stop()
+            print(f"JupyterLab stopped on its own (exit code {code}); its log is {log_path}.",
                   file=sys.stderr)
-            return server.returncode or 1
+            return code or 1
         except (_Stop, KeyboardInterrupt):
             for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
                 signal.signal(signum, signal.SIG_IGN)  # a second Ctrl-C must not cut the clean stop short

@@ -48,10 +48,8 @@ from pathlib import Path
 import nbformat
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from execute_notebooks import run  # noqa: E402 (tools/execute_notebooks.py, beside this file)
-
-from course_helpers.notebook.quiz import METADATA_KEY, QUIZ_DIR, Choice, Question, Quiz  # noqa: E402
+from course_helpers.notebook.quiz import METADATA_KEY, QUIZ_DIR, Choice, Question, Quiz
+from tools.execute_notebooks import run
 
 REPO = Path(__file__).resolve().parent.parent
 WIDGET_VIEW = "application/vnd.jupyter.widget-view+json"

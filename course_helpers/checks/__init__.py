@@ -78,31 +78,43 @@ class CheckReport:
     def summary(self) -> str:
         """Plain text, one line per criterion (what nbval compares)."""
         verdict = "PASSED" if self.passed else "NOT YET"
-        lines = [f"{self.exercise}: {verdict} "
-                 f"({sum(c.passed for c in self.criteria)}/{len(self.criteria)} criteria)"]
+        lines = [f"{self.exercise}: {verdict} {self._count()}"]
+        hints = self._hints()
         for c in self.criteria:
             line = f"  [{c.tag}] {c.name}"
             if c.detail:
                 line += f" - {c.detail}"
             lines.append(line)
-            if not c.passed and c.hint:
+            if hints.get(id(c)):
                 lines.append(f"         hint: {c.hint}")
         return "\n".join(lines)
+
+    def _count(self) -> str:
+        return f"({sum(c.passed for c in self.criteria)}/{len(self.criteria)} criteria)"
+
+    def _hints(self) -> dict[int, bool]:
+        """Which criteria show their hint: a failed one whose hint no failed criterion before it showed
+        (several cases of one exercise often fail for one reason: its hint is said once)."""
+        shown, said = {}, set()
+        for c in self.criteria:
+            if not c.passed and c.hint and c.hint not in said:
+                said.add(c.hint)
+                shown[id(c)] = True
+        return shown
 
     def __str__(self) -> str:
         return self.summary()
 
     def _repr_html_(self) -> str:
-        rows = []
+        rows, hints = [], self._hints()
         for c in self.criteria:
             colour = "#1a7f37" if c.passed else ("#9a6700" if c.inconclusive else "#cf222e")
             mark = "&#10004;" if c.passed else ("?" if c.inconclusive else "&#10008;")
-            hint = (f"<br><small>Hint: {html.escape(c.hint)}</small>"
-                    if c.hint and not c.passed else "")
+            hint = f"<br><small>Hint: {html.escape(c.hint)}</small>" if hints.get(id(c)) else ""
             detail = f" <small>({html.escape(c.detail)})</small>" if c.detail else ""
             rows.append(f"<li style='color:{colour}'>{mark} {html.escape(c.name)}{detail}{hint}</li>")
         verdict = "passed" if self.passed else "not passed yet"
-        return (f"<div><b>{html.escape(self.exercise)}: {verdict}</b>"
+        return (f"<div><b>{html.escape(self.exercise)}: {verdict} {self._count()}</b>"
                 f"<ul style='list-style:none'>{''.join(rows)}</ul></div>")
 
     def _repr_pretty_(self, printer, cycle):

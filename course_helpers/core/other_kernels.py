@@ -103,5 +103,5 @@ def notice(kernels: list[OtherKernel]) -> str | None:
     many = len(kernels) > 1
     return (f"[course] {len(kernels)} other notebook{'s' if many else ''} of this Jupyter server "
             f"{'run' if many else 'runs'} ROS: {names}. Their nodes share this machine's CPU and can slow "
-            "what this notebook measures; shut down those you are not using in JupyterLab's Running "
-            "panel (left bar), or with Kernel > Shut Down Kernel in their tab.")
+            "what this notebook measures: shut them down with rt.shutdown_other_kernels() (in a notebook, "
+            "the button below), or those you are not using in JupyterLab's Running panel (left bar).")

@@ -44,6 +44,7 @@ from course_helpers.core.executors import (
 )
 from course_helpers.core.graph_view import GraphView
 from course_helpers.core.healing import Origins
+from course_helpers.core.kernel_shutdown import shut_down_and_say
 from course_helpers.core.logs import RosoutReader, log_to_consoles
 from course_helpers.core.names import as_full_name, full_name
 from course_helpers.core.node_hook import build_nodes, destroy_fully
@@ -384,6 +385,8 @@ class CourseRuntime(NotebookWaits):
 
     def show_status(self) -> None:
         print(status_table(self.status()))  # status() as an aligned table
+
+    shutdown_other_kernels = staticmethod(shut_down_and_say)  # this user's other kernels (.kernel_shutdown)
 
     def _record_error(self, console, where: str, exc: BaseException) -> None:
         """A node's callback raised: its traceback goes to the node's console (or the cell's output)."""

@@ -22,7 +22,7 @@ A quiz file::
             feedback: That lists nodes.
           - text: ros2 topic list -t
             correct: true
-            feedback: "Right: %ros2 topic list -t in this notebook."
+            feedback: "%ros2 topic list -t in this notebook."
 
 A choice without ``correct: true`` is a wrong one. Quizzes can also be built in code:
 ``Quiz(title, [Question(prompt, [Choice(text, correct, feedback), ...]), ...])``.
@@ -200,7 +200,9 @@ class Quiz:
 
     def _widget_bundle(self) -> dict:
         try:
-            view = self.widget()
+            from course_helpers.notebook.widget_errors import owned
+
+            view = owned(self.widget(), f"quiz {self.name or self.title}")  # its callbacks' errors: a line
             bundle = view._repr_mimebundle_()
             return {k: v for k, v in bundle.items() if "widget-view" in k}
         except Exception:  # no widget support: the static rendering is enough

@@ -5,7 +5,8 @@ form, which for an ipywidgets box is a bare repr such as ``HBox(children=(...))`
 displays the widget together with a text and HTML record under one display ID; ``Record.update``
 replaces the record (for instance when a run ends, with a picture of the final plot). JupyterLab
 shows the live widget; GitHub, nbviewer and the course website show the record. nbval does not
-compare records (``tests/nbval_sanitize.cfg``), since the saved one is the final state.
+compare records (``tests/nbval_sanitize.cfg``), since the saved one is the final state. An error in
+the widget's callbacks shows as one line under it (:mod:`.widget_errors`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,9 @@ class Record:
     """The static record shown beside a widget; :meth:`update` replaces it."""
 
     def __init__(self, widget, title: str, text: str, html_body: str | None = None):
-        self.widget = widget
+        from course_helpers.notebook.widget_errors import owned
+
+        self.widget = owned(widget, title)  # with a line for its callbacks' errors (widget_errors)
         self.title = title
         self.display_id = uuid.uuid4().hex
         self._bundle = self._make(text, html_body)

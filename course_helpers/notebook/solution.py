@@ -48,6 +48,8 @@ def show_solution(module: str, name: str, label: str = "Show the reference solut
     import ipywidgets as w
     from IPython.display import display
 
+    from course_helpers.notebook.widget_errors import owned
+
     button = w.Button(description=label, icon="eye", layout=w.Layout(width="auto"))
     shown = w.HTML()
 
@@ -62,7 +64,7 @@ def show_solution(module: str, name: str, label: str = "Show the reference solut
 
     button.on_click(reveal)
     box = w.VBox([button, shown])
-    bundle = {k: v for k, v in box._repr_mimebundle_().items() if "widget-view" in k}
+    bundle = {k: v for k, v in owned(box, label)._repr_mimebundle_().items() if "widget-view" in k}
     note = "Run the notebook and press the button to see the reference solution."
     bundle.update({"text/plain": note, "text/html": f"<p><i>{note}</i></p>"})
     display(bundle, raw=True)

@@ -124,6 +124,8 @@ def live_graph(rt=None, period_s: float = 1.0, include_hidden: bool = False, sho
     """
     import ipywidgets as w
 
+    from course_helpers.notebook.widget_errors import owned
+
     if isinstance(period_s, bool) or not isinstance(period_s, (int, float)) or not 0.2 <= period_s <= 60:
         raise CourseError(f"period_s must be a number of seconds between 0.2 and 60, got {period_s!r}")
     rt = resolve_runtime(rt)
@@ -151,6 +153,7 @@ def live_graph(rt=None, period_s: float = 1.0, include_hidden: bool = False, sho
     services.observe(lambda _change: view.controller.kick(), names="value")
     auto.observe(lambda _change: view.controller.kick(), names="value")
     refresh_button.on_click(lambda _button: view.controller.kick())
+    owned(view, "live graph", inside=True)  # an error of its callbacks: one line at its end
     with _live_lock:
         _live_views.append(view)
     view.controller.start()

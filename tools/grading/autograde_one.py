@@ -1,7 +1,7 @@
 """Autograde one student's submission with nbgrader: ``autograde_one.py COURSE_DIR ASSIGNMENT STUDENT``.
 
 Run by ``tools/assignments.py grade`` as a process of its own for every submission, with the
-student's own environment (:mod:`grading.isolation`) and a wall clock. It becomes a child
+student's own environment (:mod:`tools.grading.isolation`) and a wall clock. It becomes a child
 subreaper first, so every process the student's kernel leaves behind - even one that
 detached itself - stays its descendant and can be found. It then runs nbgrader's autograde
 with the course's ``nbgrader_config.py`` and :class:`grading.guarded.GuardedExecute` in place
@@ -15,9 +15,7 @@ import json
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-
-from grading.isolation import become_subreaper, sweep_descendants  # noqa: E402
+from tools.grading.isolation import become_subreaper, sweep_descendants
 
 
 def grading_config(course_dir: str, timeout: int | None = None, record: str = ""):
@@ -25,7 +23,7 @@ def grading_config(course_dir: str, timeout: int | None = None, record: str = ""
     from nbgrader.preprocessors import Execute
     from traitlets.config.loader import PyFileConfigLoader
 
-    from grading.guarded import GuardedExecute
+    from tools.grading.guarded import GuardedExecute
 
     config = PyFileConfigLoader("nbgrader_config.py", path=course_dir).load_config()
     config.CourseDirectory.root = course_dir

@@ -37,7 +37,7 @@ from nbgrader.preprocessors import Execute
 from traitlets import Integer, Unicode
 
 from course_helpers.core.domains import SOCKET_PREFIX
-from grading.isolation import kill_all
+from tools.grading.isolation import kill_all
 
 DOMAIN_SOCKET = re.compile(r"^@" + re.escape(SOCKET_PREFIX) + r"(\d+)$")
 COURSE_CHILD = "course_helpers.core.child"  # how the course's process layer starts a child

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from grading.source import BEGIN, END
+from tools.grading.source import BEGIN, END
 
 EXTRA_CELL = "extra cell"  # an answer under this key is a cell the student added at the end
 

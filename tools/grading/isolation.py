@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import psutil
 
 from course_helpers.core.domains import domain_free, domain_holders
+from tools.grading.source import REPO
 
 PR_SET_CHILD_SUBREAPER = 36
 MARKER = "COURSE_GRADING_RUN"
@@ -60,7 +61,10 @@ def student_env(run: Run, student_build: str) -> dict[str, str | None]:
         "ROS_LOG_DIR": os.path.join(folders["ros"], "log"),
         "JUPYTER_RUNTIME_DIR": folders["runtime"],
         "MPLCONFIGDIR": folders["mpl"],
-        "PYTHONPATH": student_build,
+        # the student build first (its course_helpers has no solutions), then this checkout's root, so
+        # that the grader imports this checkout's tools.grading (the editable install's path may name
+        # another checkout of the course)
+        "PYTHONPATH": os.pathsep.join([student_build, str(REPO)]),
         "ROS_DOMAIN_ID": None,
         "COURSE_PARENT_PID": None,
     }

@@ -15,7 +15,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from grading.source import NOTEBOOKS, REPO, SOLUTIONS
+from tools.grading.source import NOTEBOOKS, REPO, SOLUTIONS
 
 PACKAGE = REPO / "course_helpers"
 MIN_LINE = 28  # characters: shorter lines (``return response``) say nothing about a solution

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from grading.results import StudentResult
+from tools.grading.results import StudentResult
 
 STARTING = "1-starting-code"  # graded first: a wrong submission that must not stop the next student
 REFERENCE = "2-reference"

@@ -133,11 +133,12 @@ class ExperimentConfig:
         return replace(self, **changes)
 
     def describe(self) -> str:
-        """The label, or one made from the fields: 'best_effort, keep_last 10, 400 Hz x 1 MiB, shm'."""
+        """The label, or one made from the fields: 'best effort, keep_last 10, 400 Hz x 1 MiB, shm' (the
+        reliability in the words every run label uses: 'reliable' or 'best effort')."""
         if self.label:
             return self.label
         history = "keep_all" if self.history == "keep_all" else f"keep_last {self.depth}"
-        parts = [self.reliability, self.durability, history,
+        parts = [self.reliability.replace("_", " "), self.durability, history,
                  f"{format_rate(self.rate_hz)} x {format_bytes(self.payload_bytes)}"]
         if self.processing_ms:
             parts.append(f"{self.processing_ms:g} ms/sample")
@@ -177,7 +178,7 @@ PRESETS: dict[str, dict] = {
                 "what the reader missed, later but complete.",
         "configs": [
             ExperimentConfig(reliability="best_effort", depth=300, rate_hz=400, payload_bytes=2**20,
-                             duration_s=0.75, label="best-effort, 1 MiB @ 400 Hz"),
+                             duration_s=0.75, label="best effort, 1 MiB @ 400 Hz"),
             ExperimentConfig(reliability="reliable", depth=300, rate_hz=400, payload_bytes=2**20,
                              duration_s=0.75, label="reliable, 1 MiB @ 400 Hz"),
         ],

@@ -33,6 +33,7 @@ from course_helpers.chapters.ch08b_lab.config import (
     ExperimentConfig,
     preset,
 )
+from course_helpers.chapters.ch08b_lab.feedback import RunFeedback, machine_line, machine_note
 from course_helpers.chapters.ch08b_lab.link import link_unavailable_reason
 from course_helpers.chapters.ch08b_lab.plots import ResultsFigure, draw_still
 from course_helpers.chapters.ch08b_lab.results import ExperimentResult
@@ -145,6 +146,7 @@ class QoSLab:
         self.b_label = w.HTML()
         self.status = w.HTML()
         self.machine_note = w.HTML()  # how busy the machine was during the last runs
+        self.feedback = RunFeedback()  # the machine before a run, the progress line during it
         self.image = w.Image(format="png", layout=w.Layout(width="100%", max_width="980px"))
         self.table = w.HTML()
         for control in self._config_controls():
@@ -164,7 +166,8 @@ class QoSLab:
             w.HBox([qos_box, load_box], layout=w.Layout(grid_gap="24px")),
             w.HBox([self.run_button, self.stop_button, self.compare_button, self.keep_b_button,
                     self.clear_button]),
-            self.b_label, self.status, self.machine_note, self.image, self.table,
+            self.b_label, self.status, self.feedback.busy_box, self.feedback.progress, self.machine_note,
+            self.image, self.table,
         ])
         self.widget.add_class("qos-lab")
 
@@ -199,7 +202,7 @@ class QoSLab:
             text = "no runs yet: each run adds a row to the table"
         else:
             text = "\n".join(f"{number}. {result.summary()}" for number, result in enumerate(self.results, 1))
-        machine = self._machine_line(self._last_runs)
+        machine = machine_line(self._last_runs)
         if machine:
             text += "\n" + machine
         body = (f"<p><b>QoS lab</b>: {len(self.results)} run(s) in this session. The plot below shows "
@@ -362,19 +365,23 @@ class QoSLab:
         finished: list[ExperimentResult] = []
         frames: list[list[float]] = []  # per run: when each live frame was shown
         try:
+            self.machine_note.value = ""
+            self.feedback.check_machine(sum(c.duration_s for c in configs))
             for number, config in enumerate(configs, 1):
                 if stop.is_set():
                     break
                 label = config.describe()
                 self._set_status(f"Running {number}/{len(configs)}: {html.escape(label)} ... "
-                                 "(the publisher's process starts, then the samples flow)", "info",
-                                 escape=False)
+                                 "(the publisher's process starts, then the samples flow; the line "
+                                 "below counts)", "info", escape=False)
+                self.feedback.run_started(number, len(configs), label)
                 live: list = []
                 frames.append([])
                 expect = (config.duration_s * 1.2 + 0.5, config.count)  # axes sized for the whole run
 
                 def progress(snap, live=live, label=label, shown=frames[-1], number=number, expect=expect):
                     live.append(snap)
+                    self.feedback.sample(snap)
                     if self._show_frame([*finished, (label, live)], expect=expect):
                         shown.append(time.monotonic())
                         self._set_status(
@@ -401,13 +408,14 @@ class QoSLab:
             else:
                 headline = "Done."
             self._set_status(f"{headline} {lines}", "warning" if unfinished else "info", escape=False)
-            self._show_machine(finished)
+            self.machine_note.value = machine_note(finished)
             self.update_record()
         except CourseError as error:
             self._set_status(str(error), "warning")
         except Exception as error:  # shown in the panel; the kernel and the panel keep working
             self._set_status(f"The experiment failed: {type(error).__name__}: {error}", "error")
         finally:
+            self.feedback.finished()
             self._busy = False
             self.stop_button.disabled = True
             for button in self.preset_buttons:
@@ -439,25 +447,6 @@ class QoSLab:
         colour = {"info": "#1f4e79", "warning": "#8a5a00", "error": "#a11"}[kind]
         body = html.escape(text) if escape else text
         self.status.value = f'<div class="qos-lab-status" style="color:{colour}">{body}</div>'
-
-    def _show_machine(self, runs: list[ExperimentResult]) -> None:
-        """Say beside the results how busy the machine was during ``runs`` (nothing when it was quiet)."""
-        line = self._machine_line(runs)
-        busy = any(r.machine is not None and r.machine.busy for r in runs)
-        colour = "#8a5a00" if busy else "#555555"
-        note = f'<div class="qos-lab-machine" style="color:{colour}">{html.escape(line)}</div>'
-        self.machine_note.value = note if line else ""
-
-    @staticmethod
-    def _machine_line(runs: list[ExperimentResult]) -> str:
-        """The busiest of ``runs``' machine loads in one line ('' when it was quiet and alone)."""
-        loads = [r.machine for r in runs if r.machine is not None]
-        if not loads:
-            return ""
-        load = max(loads, key=lambda m: (m.busy, m.others_cores))
-        if not load.busy and not (load.kernels or load.children):
-            return ""
-        return load.describe()
 
     def _refresh_b_label(self) -> None:
         text = html.escape(self.config_b.describe()) if self.config_b else "none yet"
