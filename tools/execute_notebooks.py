@@ -10,19 +10,30 @@ from __future__ import annotations
 import os
 import sys
 import time
+from datetime import datetime
 
 import nbformat
 from nbclient import NotebookClient
 
+RUN_TIME_KEY = "course_run_s"  # a code cell's run time, rounded (tools/reading_path.py adds them up)
+
 
 def run(notebook: nbformat.NotebookNode, cwd: str, timeout: int = 600) -> None:
-    """Run every cell of ``notebook`` in a fresh kernel started in ``cwd``, filling in its outputs
-    and its widget state (``metadata.widgets``)."""
+    """Run every cell of ``notebook`` in a fresh kernel started in ``cwd``, filling in its outputs,
+    its widget state (``metadata.widgets``) and each code cell's run time (``metadata.course_run_s``,
+    seconds rounded to 0.1, instead of nbclient's timestamps)."""
     os.environ.pop("ROS_DOMAIN_ID", None)
     client = NotebookClient(notebook, timeout=timeout, kernel_name="python3",
                             resources={"metadata": {"path": cwd}},
-                            store_widget_state=True, record_timing=False)
+                            store_widget_state=True, record_timing=True)
     client.execute()
+    for cell in notebook.cells:
+        stamps = cell.metadata.pop("execution", None)
+        if cell.cell_type == "code" and stamps and "iopub.execute_input" in stamps \
+                and "shell.execute_reply" in stamps:
+            started, ended = (datetime.fromisoformat(stamps[key].replace("Z", "+00:00"))
+                              for key in ("iopub.execute_input", "shell.execute_reply"))
+            cell.metadata[RUN_TIME_KEY] = round((ended - started).total_seconds(), 1)
 
 
 def execute(path: str, timeout: int = 600) -> float:
