@@ -7,6 +7,9 @@
 * :class:`NamedTalker` and :class:`ChatterCounter` - nodes for the demo in which nodes in
   separate processes find each other with nothing started first, and keep talking when one of
   them is killed (``rt.spawn('talker_a', NamedTalker, {'name': 'talker_a'})``).
+* :class:`Echo`, :class:`Pinger` and :func:`bounce` - several nodes in one process: round trips
+  to an echo in this process and to one in a child process (:class:`RoundTrips`); which DDS
+  participant holds each node is :func:`course_helpers.core.participants.participant_of`.
 
 Linux only, like the rest of the course.
 """
@@ -15,16 +18,24 @@ from __future__ import annotations
 
 import os
 import re
+import statistics
 import time
 from collections import Counter
 from dataclasses import dataclass, field
+from functools import partial
 
 from rclpy.node import Node
-from std_msgs.msg import String
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from std_msgs.msg import Int64, String
 
 from course_helpers.core import dds_config, processes
 from course_helpers.core.errors import CourseError
-from course_helpers.core.udp_sockets import udp_sockets
+from course_helpers.core.machine_load import LoadMeter, MachineLoad
+from course_helpers.core.mapped_files import mapped_files, shm_files
+from course_helpers.core.spawning import CHILD_HANG_S
+from course_helpers.core.udp_sockets import classify_port, udp_sockets
+from course_helpers.core.validation import check_node_name
 from course_helpers.core.versions import package_version
 from course_helpers.nodes.chatter import Talker
 
@@ -74,21 +85,9 @@ def loaded_libraries(pattern: str | None = None, pid: int | str = "self") -> lis
     Returns:
         The sorted basenames, e.g. ``['libfastrtps.so.2.14', 'librmw_fastrtps_cpp.so']``.
     """
-    names = {os.path.basename(path) for path in _mapped_files(pid) if ".so" in path}
+    names = {os.path.basename(path) for path in mapped_files(pid) if ".so" in path}
     regex = re.compile(pattern) if pattern else None
     return sorted(n for n in names if regex is None or regex.search(n))
-
-
-def _mapped_files(pid: int | str = "self") -> list[str]:
-    """The paths of the files mapped into process ``pid`` ('self': this one)."""
-    import psutil
-
-    try:
-        process = psutil.Process() if pid == "self" else psutil.Process(int(pid))
-        return [region.path for region in process.memory_maps(grouped=True)]
-    except (psutil.Error, ValueError) as exc:
-        raise CourseError(f"cannot read the memory maps of process {pid} ({exc}); this needs Linux "
-                          "and a process of your own") from None
 
 
 def layer_stack() -> list[Layer]:
@@ -144,35 +143,6 @@ class Transports:
         return sorted({address for address, _port, _meaning in self.udp_sockets})
 
 
-# rmw_fastrtps asks for a listening port of their own ("unique network flow") for the subscription
-# that hears the graph's updates, ros_discovery_info (init_rmw_context_impl.cpp), and Fast DDS picks the
-# first free one from its port base minus 400 up to the base (RTPSParticipantImpl.cpp), in any domain.
-GRAPH_PORTS = (7400 - 400, 7400)
-
-
-def classify_port(port: int, domain_id: int) -> str:
-    """What a UDP ``port`` of a participant in ``domain_id`` is for, as a short phrase.
-
-    Follows the RTPS port mapping (base 7400 + 250 x domain), e.g. 'discovery, unicast
-    (participant 0)'.
-    """
-    base = 7400 + 250 * domain_id
-    if port == base:
-        return "discovery, multicast"
-    if port == base + 1:
-        return "user data, multicast"
-    offset = port - base - 10
-    if 0 <= offset < 240:
-        participant = offset // 2
-        kind = "discovery" if offset % 2 == 0 else "user data"
-        return f"{kind}, unicast (participant {participant})"
-    if port >= 32768:
-        return "sending socket (ephemeral port picked by the OS)"
-    if GRAPH_PORTS[0] <= port < GRAPH_PORTS[1]:
-        return "graph updates (ros_discovery_info), a port of their own"
-    return "another Fast DDS port, outside the domain's RTPS range"
-
-
 def transports_in_use(domain_id: int | None = None) -> Transports:
     """The shared-memory files mapped and the UDP sockets bound by this process.
 
@@ -191,8 +161,7 @@ def transports_in_use(domain_id: int | None = None) -> Transports:
     get_runtime().graph_nodes()  # rmw creates the participant (and its transports) with the first node
     if domain_id is None:
         domain_id = int(os.environ.get("ROS_DOMAIN_ID", "0") or 0)
-    shm = {os.path.basename(path) for path in _mapped_files() if path.startswith("/dev/shm/fast")}
-    return Transports(domain_id, sorted(shm),
+    return Transports(domain_id, shm_files(),
                       [(address, port, classify_port(port, domain_id)) for address, port in udp_sockets()])
 
 
@@ -290,3 +259,134 @@ def count_during(counter: ChatterCounter, seconds: float = 1.0) -> dict[str, int
     time.sleep(seconds)
     after = Counter(counter.counts)
     return {sender: after[sender] - before[sender] for sender in sorted(set(after) | set(before))}
+
+
+# ---------------------------------------------------------------------- several nodes, one process
+# Reliable and transient-local, depth 1: a ping or pong sent before its reader has matched is delivered
+# when it matches, so the one message in flight is never lost and a chain of round trips never stalls.
+BOUNCE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+MAX_ROUNDS = 10_000
+
+
+class Echo(Node):
+    """Answers every number on its ``~/ping`` with the same message on its ``~/pong``.
+
+    ``last`` is the last message it received.
+    """
+
+    def __init__(self, name: str = "echo"):
+        super().__init__(name)
+        self.last: Int64 | None = None
+        self.publisher = self.create_publisher(Int64, "~/pong", BOUNCE_QOS)
+        self.subscription = self.create_subscription(Int64, "~/ping", self.on_ping, BOUNCE_QOS)
+
+    def on_ping(self, msg: Int64) -> None:
+        self.last = msg
+        self.publisher.publish(msg)
+
+
+class Pinger(Node):
+    """Bounces numbered messages off :class:`Echo` nodes (named in ``echoes``), one message in flight.
+
+    Each answer sends the next message, to the next echo in turn, from the answer's callback: the
+    whole run happens in the executor's thread, and the echoes take turns, so a change in the
+    machine's load falls on all of them alike. The numbers start from the monotonic clock, so an
+    answer left over from an earlier run is never taken for one of this run.
+    """
+
+    def __init__(self, echoes=("echo",), name: str = "pinger"):
+        super().__init__(name)
+        if isinstance(echoes, str) or not echoes:
+            raise CourseError(f"echoes must be a list of echo node names, e.g. ['echo_here'], got {echoes!r}")
+        self.echoes = [check_node_name(echo) for echo in echoes]
+        self.sent: dict[str, Int64] = {}  # the last message sent to each echo
+        self.round_trips: dict[str, list[float]] = {echo: [] for echo in self.echoes}  # seconds
+        self.to_echo = {e: self.create_publisher(Int64, f"/{e}/ping", BOUNCE_QOS) for e in self.echoes}
+        self.from_echo = {e: self.create_subscription(Int64, f"/{e}/pong", partial(self.on_pong, e),
+                                                      BOUNCE_QOS) for e in self.echoes}
+        self._plan: list[str] = []  # the echoes still to ping, in order
+        self._in_flight: tuple[str, int, float] | None = None  # (echo, number, time.perf_counter())
+        self._number = time.monotonic_ns()
+        self._done = Future()
+
+    def matched(self) -> bool:
+        """True once every echo subscribes to its ping and publishes its pong, as this node sees it."""
+        return all(self.to_echo[e].get_subscription_count() > 0
+                   and self.from_echo[e].get_publisher_count() > 0 for e in self.echoes)
+
+    def start(self, rounds: int) -> Future:
+        """Send ``rounds`` messages to each echo in turn; call it in the executor's thread.
+
+        Returns a future done with :attr:`round_trips` when the last answer came.
+        """
+        self.round_trips = {echo: [] for echo in self.echoes}
+        self._plan = self.echoes * rounds
+        self._done = Future()
+        self._send_next()
+        return self._done
+
+    def _send_next(self) -> None:
+        if not self._plan:
+            self._in_flight = None
+            self._done.set_result(self.round_trips)
+            return
+        echo = self._plan.pop(0)
+        self._number += 1
+        self.sent[echo] = Int64(data=self._number)
+        self._in_flight = (echo, self._number, time.perf_counter())
+        self.to_echo[echo].publish(self.sent[echo])
+
+    def on_pong(self, echo: str, msg: Int64) -> None:
+        arrived = time.perf_counter()
+        if self._in_flight is None or (echo, msg.data) != self._in_flight[:2]:
+            return  # an answer left over from an earlier run
+        self.round_trips[echo].append(arrived - self._in_flight[2])
+        self._send_next()
+
+
+@dataclass
+class RoundTrips:
+    """Round-trip times in seconds, per echo, and how busy the machine was while they were measured."""
+
+    seconds: dict[str, list[float]]
+    load: MachineLoad
+
+    def one_way_us(self, echo: str) -> float:
+        """Half the median round trip to ``echo``, in microseconds."""
+        return statistics.median(self.seconds[echo]) / 2 * 1e6
+
+    def fastest_us(self, echo: str) -> float:
+        """Half the fastest round trip to ``echo``, in microseconds: when nothing got in the way."""
+        return min(self.seconds[echo]) / 2 * 1e6
+
+    def show(self, labels: dict[str, str] | None = None) -> None:
+        """Print one line per echo (``labels`` names them: {'echo_here': 'same process'}), then the load."""
+        labels = labels or {}
+        print(f"{'':<16} {'round trips':>11}  {'one way, median':>15}  {'fastest':>9}")
+        for echo, seconds in self.seconds.items():
+            print(f"{labels.get(echo, echo):<16} {len(seconds):>11}  {self.one_way_us(echo):>12.0f} µs"
+                  f"  {self.fastest_us(echo):>6.0f} µs")
+        if len(self.seconds) == 2:
+            first, second = self.seconds
+            print(f"{labels.get(second, second)} / {labels.get(first, first)}, median one way: "
+                  f"{self.one_way_us(second) / self.one_way_us(first):.2f}")
+        print(self.load.describe())
+
+
+def bounce(rt, pinger: Pinger, rounds: int = 200, timeout: float = CHILD_HANG_S) -> RoundTrips:
+    """Measure ``rounds`` round trips from ``pinger`` (a running node of ``rt``) to each of its echoes.
+
+    Waits until the pinger has matched every echo, sends one message to each that is not counted
+    (buffers and connections warm up), then the counted ones. ``timeout`` bounds a hang of each part.
+    Returns a :class:`RoundTrips`.
+    """
+    if isinstance(rounds, bool) or not isinstance(rounds, int) or not 1 <= rounds <= MAX_ROUNDS:
+        raise CourseError(f"rounds must be a whole number from 1 to {MAX_ROUNDS}, got {rounds!r}")
+    echoes = ", ".join(pinger.echoes)
+    rt.wait_until(pinger.matched, timeout, f"{pinger.get_name()} to match the echoes {echoes}")
+    rt.wait_for_future(rt.call_in_executor(pinger.start, 1), timeout, f"a first round trip to {echoes}")
+    meter = LoadMeter()
+    run = rt.call_in_executor(pinger.start, rounds)
+    rt.wait_for_future(run, timeout, f"{rounds} round trips to {echoes}")
+    return RoundTrips({echo: list(times) for echo, times in pinger.round_trips.items()}, meter.finish())

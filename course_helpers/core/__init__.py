@@ -12,6 +12,9 @@ plots or the ``%ros2`` magics.
   channel on which a child reports to the kernel;
 * ``domains``, ``dds_config``, ``shm_ports``: a ROS domain per kernel, machine-wide, how
   participants discover each other, and the shared-memory files old processes left behind;
+* ``participants``, ``udp_sockets``, ``mapped_files``: which DDS participant holds a node (its GUID
+  prefix in the graph), and what a process holds of Fast DDS (its UDP sockets and what each is for,
+  its shared-memory files);
 * ``netns``: private network namespaces whose processes are course children (a lossy link,
   two machines on one box);
 * ``console``, ``logs``: node consoles under the cell that started a node;

@@ -1,4 +1,5 @@
-"""The UDP sockets a process holds, and which of them another machine could reach (chapters 00, 01).
+"""The UDP sockets a process holds, what Fast DDS opened each for, and which of them another machine could
+reach.
 
 Fast DDS opens UDP sockets for discovery and for data. Where they are bound says how far the
 process can be reached: a socket bound to a loopback address (``127.0.0.1``, ``::1``) only
@@ -36,3 +37,38 @@ def is_loopback(address: str) -> bool:
 def reachable_from_network(sockets: list[tuple[str, int]]) -> list[tuple[str, int]]:
     """The sockets of ``sockets`` that are not bound to a loopback address (``0.0.0.0`` included)."""
     return [socket for socket in sockets if not is_loopback(socket[0])]
+
+
+# rmw_fastrtps asks for a listening port of their own ("unique network flow") for the subscription
+# that hears the graph's updates, ros_discovery_info (init_rmw_context_impl.cpp), and Fast DDS picks the
+# first free one from its port base minus 400 up to the base (RTPSParticipantImpl.cpp), in any domain.
+# So each participant that rmw_fastrtps creates holds one UDP port in this range.
+GRAPH_PORTS = (7400 - 400, 7400)
+
+
+def classify_port(port: int, domain_id: int) -> str:
+    """What a UDP ``port`` of a participant in ``domain_id`` is for, as a short phrase.
+
+    Follows the RTPS port mapping (base 7400 + 250 x domain), e.g. 'discovery, unicast
+    (participant 0)'.
+    """
+    base = 7400 + 250 * domain_id
+    if port == base:
+        return "discovery, multicast"
+    if port == base + 1:
+        return "user data, multicast"
+    offset = port - base - 10
+    if 0 <= offset < 240:
+        participant = offset // 2
+        kind = "discovery" if offset % 2 == 0 else "user data"
+        return f"{kind}, unicast (participant {participant})"
+    if port >= 32768:
+        return "sending socket (ephemeral port picked by the OS)"
+    if is_graph_port(port):
+        return "graph updates (ros_discovery_info), a port of their own"
+    return "another Fast DDS port, outside the domain's RTPS range"
+
+
+def is_graph_port(port: int) -> bool:
+    """True for a port in :data:`GRAPH_PORTS`: a participant's ``ros_discovery_info`` reader listens there."""
+    return GRAPH_PORTS[0] <= port < GRAPH_PORTS[1]

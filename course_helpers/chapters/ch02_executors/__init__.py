@@ -4,6 +4,8 @@
   callback groups (:func:`measure_blocking`, :func:`plot_tick_gaps`, :func:`spin_for`);
 * :mod:`.jitter`: how late a timer's calls start, idle and beside a CPU-heavy callback
   (:func:`measure_timer_jitter`, :func:`plot_jitter`);
+* :mod:`.participant_life`: when a context's DDS participant exists, seen from outside it
+  (:class:`ParticipantWatch`);
 * :mod:`.rcl_programs`: compile a small C++ program on rcl and run it as a course child process
   (:func:`build_rcl_program`, :func:`run_program`).
 """
@@ -25,6 +27,7 @@ from course_helpers.chapters.ch02_executors.jitter import (
     measure_timer_jitter,
     plot_jitter,
 )
+from course_helpers.chapters.ch02_executors.participant_life import Footprint, ParticipantWatch
 from course_helpers.chapters.ch02_executors.rcl_programs import (
     RclProgram,
     build_rcl_program,
@@ -36,9 +39,11 @@ __all__ = [
     "EXECUTORS",
     "ControlLoopWithPlanner",
     "DueWhileBusy",
+    "Footprint",
     "GapResult",
     "JitterProbe",
     "JitterResult",
+    "ParticipantWatch",
     "RclProgram",
     "build_rcl_program",
     "measure_blocking",
