@@ -88,3 +88,10 @@ def test_callback_output_goes_to_the_node_console_not_the_running_cell(kernel):
     out, _ = kernel.run("print(rt._router.console_for('printer').text())")
     assert "tick from the printer" in out
     assert "log from the printer" in out and "[INFO]" in out
+
+
+def test_a_cell_that_ends_with_a_claim_shows_its_line_once(kernel):
+    out, error = kernel.run("from course_helpers import claim\nclaim('one and one make two', 1 + 1 == 2)")
+    assert error is None and out.count("one and one make two") == 1, out
+    out, error = kernel.run("from course_helpers.core.verdict import judge\njudge('never printed', True)")
+    assert error is None and out.count("never printed") == 1, out  # a verdict not yet printed shows its line

@@ -22,7 +22,7 @@ with one line that says why and what to do. On a quiet machine a verdict is neve
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import TypeVar
 
 from course_helpers.core.machine_load import LoadMeter, MachineLoad
@@ -55,6 +55,12 @@ class Verdict:
     measured: str = ""  # the measured values, in words ("p90 0.18 s")
     load: MachineLoad | None = None  # None: judged by construction, load plays no part
     attempts: int = 1
+    printed: bool = field(default=False, compare=False, repr=False)  # its line is already in the output
+
+    def _ipython_display_(self) -> None:
+        """A cell that ends with a claim shows its line once: claim() printed it already."""
+        if not self.printed:
+            print(self.line())
 
     @property
     def passed(self) -> bool:
@@ -136,7 +142,7 @@ def claim(statement: str, holds: object, measured: str = "") -> Verdict:
     measured values) and raise :class:`VerdictError` if it does not hold."""
     verdict = judge(statement, holds, measured)
     print(verdict.line(), flush=True)
-    return verdict.raise_unless_passed()
+    return replace(verdict, printed=True).raise_unless_passed()
 
 
 def claim_timing(statement: str, measure: Callable[[], T], holds: Callable[[T], object],
