@@ -3,11 +3,13 @@ deep dives that say what they are, in the notebook and on the static page alike.
 
 from __future__ import annotations
 
+import ast
 import glob
 import json
 import os
 
 import pytest
+from IPython.core.inputtransformer2 import TransformerManager
 
 from tools.reading_path import DEEP_DIVE, HEADING, chapter, heading_level
 
@@ -59,3 +61,60 @@ def test_the_deep_dive_check_finds_a_plain_title_and_an_open_section():
     assert not deep_dive_problems([heading("### Deep dive (optional): ports\ntext", True)])
     assert len(deep_dive_problems([heading("### Ports\ntext", True)])) == 1
     assert len(deep_dive_problems([heading("### Deep dive (optional): ports", False)])) == 1
+
+
+def _bound_and_used(code: str) -> tuple[set[str], set[str]]:
+    """Names a code cell binds (assignments, imports, defs) and names it reads (magics as IPython runs
+    them)."""
+    tree = ast.parse(TransformerManager().transform_cell(code))
+    bound, used = set(), set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            (used if isinstance(node.ctx, ast.Load) else bound).add(node.id)
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            bound.add(node.name)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            bound.update((alias.asname or alias.name).split(".")[0] for alias in node.names)
+    return bound, used
+
+
+def core_needs_a_deep_dive(cells: list[dict]) -> list[str]:
+    """Names a core code cell reads that only a deep dive before it binds: a student who skips the
+    collapsed sections would meet a NameError there."""
+    found, core_bound, deep_bound = [], set(), set()
+    deep_level = None
+    for index, cell in enumerate(cells):
+        level = heading_level(cell)
+        tags = cell.get("metadata", {}).get("tags", [])
+        if level is not None and deep_level is not None and level <= deep_level:
+            deep_level = None
+        if level is not None and DEEP_DIVE in tags and deep_level is None:
+            deep_level = level
+        if cell["cell_type"] != "code":
+            continue
+        bound, used = _bound_and_used("".join(cell["source"]))
+        if deep_level is not None or DEEP_DIVE in tags:
+            deep_bound |= bound
+            continue
+        for name in sorted((used & deep_bound) - core_bound - bound):
+            found.append(f"cell {index} reads {name!r}, which only a deep dive binds")
+        core_bound |= bound
+    return found
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[os.path.basename(p) for p in NOTEBOOKS])
+def test_the_core_path_needs_no_deep_dive(path):
+    with open(path, encoding="utf-8") as handle:
+        cells = json.load(handle)["cells"]
+    assert not core_needs_a_deep_dive(cells)
+
+
+def test_the_check_finds_a_core_cell_that_reads_a_deep_dives_name():
+    def cell(kind, text, tags=()):
+        return {"cell_type": kind, "metadata": {"tags": list(tags)}, "source": [text]}
+
+    cells = [cell("markdown", "## Deep dive (optional): x", [DEEP_DIVE]), cell("code", "traffic = measure()"),
+             cell("markdown", "## Back"), cell("code", "%ros2 node list\nprint(traffic)")]
+    assert core_needs_a_deep_dive(cells) == ["cell 3 reads 'traffic', which only a deep dive binds"]
+    cells.insert(3, cell("code", "traffic = measure()"))
+    assert not core_needs_a_deep_dive(cells)
