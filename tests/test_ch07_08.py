@@ -84,6 +84,9 @@ def test_discovery_server_connects_clients_only_through_it_and_is_reaped(rt):
     assert dds.heard_lines(listener) == []  # no server yet: clients cannot find each other
     server = dds.start_discovery_server(port=port)
     assert udp_port_bound(port) and "Server is running" in server.output()
+    # what the notebook prints: the command line as in a terminal, and the profile that makes it a server
+    assert server.command() == f"fast-discovery-server -i 0 -l 127.0.0.1 -p {port} -x {server.profile}"
+    assert "<discoveryProtocol>SERVER</discoveryProtocol>" in server.profile_text()
     rt.wait_until(lambda: dds.heard_lines(listener), 10, "the listener to hear through the server")
     assert all(line.startswith("hello ") for line in dds.heard_lines(listener))
     assert "/ds_talker" not in rt.graph_nodes()  # the kernel uses simple discovery, not the server
@@ -113,6 +116,13 @@ def test_dds_names_show_the_mangling(rt):
     assert [i.node_name for i in info] == ["mangle_demo"]
     assert dds.guid_process_id(info[0].endpoint_gid) == os.getpid() & 0xFFFF
     assert dds.guid_vendor(info[0].endpoint_gid) == "eProsima Fast DDS"
+
+
+def test_the_active_rmw_implementation_is_among_the_installed_ones():
+    import rclpy
+
+    assert rclpy.get_rmw_implementation_identifier() in dds.installed_rmw_implementations()
+    assert dds.installed_rmw_implementations(prefix="/nonexistent") == []
 
 
 def test_security_is_not_built_in_and_permissive_without_a_keystore_runs_unprotected(rt):
@@ -310,22 +320,36 @@ def _liveliness(kind: str, lease_s: float) -> QoSProfile:
     return qos.qos_from_dict({"liveliness": kind, "lease_s": lease_s})
 
 
+def _crash(rt, monitor, lease_s=1.0, watch_s=2.0):
+    """What 08a's crash demo does: start AliveTalker, kill it once the monitor heard it, watch."""
+    started = time.monotonic()
+    talker = rt.spawn("alive_talker", qos.AliveTalker, params={"lease_s": lease_s}, wait_for="/alive_talker")
+    rt.wait_until(lambda: monitor.received["automatic"] >= 3, 10, "messages from the child talker")
+    killed_at = time.monotonic()
+    talker.kill()
+    return qos.watch_after_crash(rt, monitor, talker, lease_s, started, killed_at, watch_s=watch_s)
+
+
 def test_liveliness_lost_when_a_child_publisher_is_killed(rt):
     topics = {"automatic": ("alive", _liveliness("automatic", 1.0))}
     monitor = rt.add(_LivelinessMonitor, "crash_watch", topics)
-    result = qos.kill_talker(rt, monitor, lease_s=1.0, watch_s=2.0)
+    result = _crash(rt, monitor)
     delay = result.first_not_alive_after_cut("automatic")
     assert delay is not None and 0.5 < delay < 2.0
     assert rt.children() == {} and rt.nodes() == []
+    talker = rt.spawn("alive_talker", qos.AliveTalker, wait_for="/alive_talker")
     with pytest.raises(CourseError, match="self.changed"):
-        qos.kill_talker(rt, rt.node("not_a_monitor"))
-    assert rt.children() == {}
+        qos.watch_after_crash(rt, rt.node("not_a_monitor"), talker, 1.0, time.monotonic(), time.monotonic())
+    assert rt.children() == {} and rt.nodes() == []  # a bad monitor still stops the talker
 
 
 def test_liveliness_quiet_manual_publisher_is_lost_and_comes_back(rt):
     monitor = rt.add(_LivelinessMonitor, "quiet_watch", {
         kind: (f"qos_{kind}", _liveliness(kind, 0.5)) for kind in ("automatic", "manual_by_topic")})
-    result = qos.watch_quiet_spell(rt, monitor, lease_s=0.5, quiet_from=0.6, quiet_until=1.8, duration_s=2.6)
+    talker = rt.spawn("liveliness_talker", qos.LivelinessTalker,
+                      params={"lease_s": 0.5, "quiet_from": 0.6, "quiet_until": 1.8})
+    result = qos.watch_quiet_spell(rt, monitor, talker, duration_s=2.6)
+    assert (result.lease_s, result.cut_at, result.resumed_at) == (0.5, 0.6, 1.8)  # from the talker's report
     delay = result.first_not_alive_after_cut("manual_by_topic")
     assert delay is not None and 0.2 < delay < 1.2  # one lease (0.5 s) after it went quiet
     assert result.lost and all(0.6 < t < 2.0 for t, _count in result.lost)  # from the child's reports

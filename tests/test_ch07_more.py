@@ -80,11 +80,12 @@ def test_notebook_prose_no_longer_says_what_the_measurements_contradict():
                   "stays close to it up to", "solutions/dds.py"):
         assert stale not in text, stale
     assert "**Iron**" in text and "count, not a measurement" in text
+    hood = "## Deep dive (optional): under the hood"
     for taught in ("## 7. Security", "governance", "permissions", "enclave", "ROS_SECURITY_STRATEGY",
-                   "Under the hood (optional)", "SPDP", "SEDP", "lease"):
+                   hood, "SPDP", "SEDP", "lease"):
         assert taught in text, taught
     assert "(section 7)" in text and "## 7. Security" in text  # the pointer of section 1 leads somewhere
-    assert text.index("## 7. Security") < text.index("## 8. Exercise") < text.index("Under the hood")
-    assert text.index("leaseAnnouncement") > text.index("Under the hood")  # tuning only in the optional part
+    assert text.index("## 7. Security") < text.index("## 8. Exercise") < text.index(hood)
+    assert text.index("leaseAnnouncement") > text.index(hood)  # tuning only in the optional part
     code = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
     assert "compare_discovery" in code and "show_solution('ch07_dds', 'PrivateRobot'" in code

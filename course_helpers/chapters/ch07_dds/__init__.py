@@ -12,7 +12,7 @@
   (:func:`side_by_side` prints it beside chapter 01's results);
 * :mod:`.machines` - two network namespaces joined by a veth pair: the discovery range across a link;
 * :mod:`.names` - ROS names as DDS topics and types, and what a GUID says;
-* :mod:`.middleware` - the active and the installed rmw implementations;
+* :mod:`.middleware` - the installed rmw implementations;
 * :mod:`.transports` - one message bounced in one process, over shared memory and over UDP;
 * :mod:`.security` - what rcl and Fast DDS do when a node asks for DDS security;
 * :mod:`.cyclone` - another vendor, Eclipse Cyclone DDS, in the kernel's domain (notebook 07b);
@@ -64,7 +64,7 @@ from course_helpers.chapters.ch07_dds.discovery_wire import (
 )
 from course_helpers.chapters.ch07_dds.listener import ReportingListener, heard_lines
 from course_helpers.chapters.ch07_dds.machines import LinkResult, link_table, two_machines
-from course_helpers.chapters.ch07_dds.middleware import installed_rmw_implementations, middleware_report
+from course_helpers.chapters.ch07_dds.middleware import installed_rmw_implementations
 from course_helpers.chapters.ch07_dds.names import (
     DdsEntity,
     dds_entities,
@@ -73,7 +73,6 @@ from course_helpers.chapters.ch07_dds.names import (
     guid_vendor,
     ros_name_from_dds,
     ros_type_from_dds,
-    show_dds_entities,
 )
 from course_helpers.chapters.ch07_dds.security import (
     empty_keystore,

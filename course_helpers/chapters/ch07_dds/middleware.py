@@ -1,11 +1,9 @@
-"""Which ROS middleware (rmw) implementation runs, and which ones are installed."""
+"""Which ROS middleware (rmw) implementations are installed (the notebook asks rclpy which one runs)."""
 
 from __future__ import annotations
 
 import os
 import sys
-
-from course_helpers.core.versions import package_version
 
 
 def installed_rmw_implementations(prefix: str = sys.prefix) -> list[str]:
@@ -19,16 +17,3 @@ def installed_rmw_implementations(prefix: str = sys.prefix) -> list[str]:
                     and impl not in ("rmw_implementation",):
                 found.add(impl)
     return sorted(found)
-
-
-def middleware_report() -> dict:
-    """A dict: the active rmw implementation, what RMW_IMPLEMENTATION says, the installed ones,
-    and the Fast DDS version."""
-    import rclpy
-
-    return {
-        "active": rclpy.get_rmw_implementation_identifier(),
-        "RMW_IMPLEMENTATION": os.environ.get("RMW_IMPLEMENTATION", "(not set: the default is used)"),
-        "installed": installed_rmw_implementations(),
-        "Fast DDS": package_version("ros-fastrtps"),
-    }

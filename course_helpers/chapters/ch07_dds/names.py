@@ -77,15 +77,6 @@ def dds_entities(rt, contains: str = "", include_hidden: bool = False) -> list[D
     return sorted(rows, key=lambda r: (r.dds_topic, r.dds_type))
 
 
-def show_dds_entities(rows: list[DdsEntity]) -> None:
-    """Print :func:`dds_entities` as an aligned table."""
-    width = max([len(r.dds_topic) for r in rows] + [9])
-    type_width = max([len(r.dds_type) for r in rows] + [8])
-    print(f"{'DDS topic':<{width}}  {'DDS type':<{type_width}}  ROS name (meaning)")
-    for r in rows:
-        print(f"{r.dds_topic:<{width}}  {r.dds_type:<{type_width}}  {r.ros_name} ({r.meaning})")
-
-
 def guid_prefix(gid) -> str:
     """The participant part (first 12 bytes) of an endpoint GUID (bytes or a list of ints), as dotted hex."""
     return gid_prefix(gid)

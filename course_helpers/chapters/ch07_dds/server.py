@@ -48,11 +48,13 @@ class DiscoveryServer:
     """A ``fast-discovery-server`` process (a ``ChildProcess``) listening on 127.0.0.1:``port``.
 
     ``lease_s``: the lease it announces; its clients drop it that long after its last announcement.
+    ``profile``: the path of the Fast DDS profile it read (``-x``).
     """
 
     port: int
     child: processes.ChildProcess
     lease_s: float = dds_config.LEASE_S
+    profile: str = ""
 
     @property
     def alive(self) -> bool:
@@ -77,6 +79,16 @@ class DiscoveryServer:
     def client_env(self) -> dict:
         """Environment that makes a process a client of this server (server ID 0)."""
         return {"ROS_DISCOVERY_SERVER": self.address}
+
+    def command(self) -> str:
+        """Its command line as typed in a terminal: the program's name, then its options."""
+        program, *options = self.child.argv[len(processes.PROGRAM_ARGV):]
+        return " ".join([os.path.basename(program), *options])
+
+    def profile_text(self) -> str:
+        """The Fast DDS profile it read (``-x``): what makes it a SERVER, and the lease it announces."""
+        with open(self.profile, encoding="utf-8") as handle:
+            return handle.read()
 
     def ready(self) -> bool:
         """True once its UDP port is bound and it has said that it runs."""
@@ -118,7 +130,7 @@ def start_discovery_server(port: int | None = None, timeout: float = 5.0,
                                   "-x", profile)
     child = processes.start(SERVER_LABEL, argv, group=SERVER_GROUP, channel=False,
                             stop_signal=signal.SIGTERM)
-    server = DiscoveryServer(port, child, lease_s)
+    server = DiscoveryServer(port, child, lease_s, profile)
     if not (poll_until(lambda: server.ready() or not server.alive, timeout) and server.alive):
         server.stop()
         raise CourseError(f"the discovery server did not listen on UDP port {port} within {timeout:g} s. "

@@ -8,8 +8,8 @@ This package starts the child processes and runs the schedules around them, meas
 * :mod:`.history` - :func:`burst_before_spinning` sends a burst while the listener is not spun;
 * :mod:`.deadline` - :func:`pause_talker` silences the notebook's talker for a while;
 * :mod:`.lifespan` - what a late joiner got of a transient-local publisher's stored messages;
-* :mod:`.liveliness` - :func:`kill_talker` kills a publisher process, :func:`watch_quiet_spell`
-  runs a publisher that goes quiet, both against the notebook's monitor;
+* :mod:`.liveliness` - :func:`watch_after_crash` and :func:`watch_quiet_spell` watch the notebook's
+  monitor after its publisher process was killed, and while its publisher goes quiet;
 * :mod:`.publishers` - the publishers those run in child processes (the notebook prints them);
 * :mod:`.compatibility` and :mod:`.explorer` - whether a publisher and a subscription connect;
 * :mod:`.profiles` - the predefined profiles side by side;
@@ -44,8 +44,8 @@ from course_helpers.chapters.ch08_qos.history import burst_before_spinning
 from course_helpers.chapters.ch08_qos.lifespan import LifespanResult, plot_lifespan
 from course_helpers.chapters.ch08_qos.liveliness import (
     LivelinessResult,
-    kill_talker,
     plot_liveliness,
+    watch_after_crash,
     watch_quiet_spell,
 )
 from course_helpers.chapters.ch08_qos.profiles import PREDEFINED, profiles_table, show_profiles_table

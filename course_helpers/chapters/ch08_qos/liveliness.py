@@ -1,11 +1,13 @@
 """Liveliness: when a subscription declares its publisher not alive, and what keeps it alive.
 
-The notebook writes the monitor (one subscription per topic, each with a liveliness callback); the
-publishers run in child processes, so that liveliness travels between two participants:
+The notebook writes the monitor (one subscription per topic, each with a liveliness callback), starts
+the publishers in child processes (so that liveliness travels between two participants) and kills one;
+these functions watch what follows and stop them:
 
-* :func:`kill_talker` - :class:`~.publishers.AliveTalker` (AUTOMATIC) is killed with SIGKILL;
-* :func:`watch_quiet_spell` - :class:`~.publishers.LivelinessTalker` goes quiet on an AUTOMATIC and a
-  MANUAL_BY_TOPIC topic while its process lives, and reports ``start`` and its ``lost`` events;
+* :func:`watch_after_crash` - after :class:`~.publishers.AliveTalker` (AUTOMATIC) was killed with
+  SIGKILL, until its lease ran out;
+* :func:`watch_quiet_spell` - while :class:`~.publishers.LivelinessTalker` goes quiet on an AUTOMATIC and
+  a MANUAL_BY_TOPIC topic and its process lives; it reports ``start`` and its ``lost`` events;
 * :func:`seconds_without_writer` - from a subscription's liveliness events, how long in a window no
   writer was alive (the heartbeat checker's measure), leaving out the :func:`blind_spells` in which
   the watcher's own executor did not run (its events then arrive late, all at once).
@@ -16,7 +18,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from course_helpers.chapters.ch08_qos.publishers import AliveTalker, LivelinessTalker
 from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
@@ -59,69 +60,68 @@ def _since(monitor, start: float, until: float | None = None) -> dict[str, list[
             for label, events in monitor.changed.items()}
 
 
-def kill_talker(rt, monitor, lease_s: float = 1.0, watch_s: float = 2.5) -> LivelinessResult:
-    """Start :class:`AliveTalker` (AUTOMATIC liveliness, lease ``lease_s``, topic ``alive``) in a child
-    process, SIGKILL it once ``monitor`` got 3 messages, and watch until the lease ran out.
+def _stop(rt, talker, monitor) -> None:
+    """Stop the talker's process and remove the monitor (both may be gone already)."""
+    rt.stop_child(talker.label)
+    rt.remove(monitor)
+
+
+def watch_after_crash(rt, monitor, talker, lease_s: float, started: float, killed_at: float,
+                      watch_s: float = 2.5) -> LivelinessResult:
+    """Watch ``monitor`` after the notebook killed ``talker``, until the lease ran out.
 
     Args:
         rt: the kernel's runtime.
-        monitor: a spinning node subscribed to ``alive``, recording under the label 'automatic'
-            ``received`` (a message count) and ``changed`` ((time.monotonic(), alive_count,
+        monitor: a spinning node subscribed to the talker's topic, recording under the label
+            'automatic' ``received`` (a message count) and ``changed`` ((time.monotonic(), alive_count,
             not_alive_count) of each liveliness-changed event). It is removed at the end.
+        talker: the killed publisher's child process (``rt.spawn``'s ``ChildProcess``); stopped and
+            reaped at the end.
         lease_s: the talker's liveliness lease.
+        started, killed_at: ``time.monotonic()`` when the demo started and when the talker was killed.
         watch_s: the longest watch after the kill; it ends 0.2 s after the subscription saw the
             publisher not alive.
 
-    The process cannot say goodbye: the subscription notices when the lease runs out without the
-    participant's liveliness assertion. Returns a :class:`LivelinessResult` (times since the start).
+    Returns a :class:`LivelinessResult` (times since ``started``).
     """
-    _check_monitor(monitor, ["automatic"])
-    start = time.monotonic()
-    child = rt.spawn("alive_talker", AliveTalker, params={"lease_s": lease_s}, wait_for="/alive_talker")
     try:
-        rt.wait_until(lambda: monitor.received["automatic"] >= 3, 10.0, "messages from the child talker")
-        killed_at = time.monotonic()
-        child.kill()  # SIGKILL, as a crash would
+        _check_monitor(monitor, ["automatic"])
         events = monitor.changed["automatic"]
-        # the lease runs out meanwhile
+        # the lease runs out meanwhile; no event by then is an outcome the result shows
         poll_until(lambda: any(t > killed_at and not_alive for t, _a, not_alive in events), watch_s)
         time.sleep(AFTER_NOT_ALIVE_S)  # anything more the subscription would report
     finally:
-        rt.stop_child("alive_talker")
-        rt.remove(monitor)
-    return LivelinessResult(lease_s, killed_at - start, None, _since(monitor, start), [],
-                            dict(monitor.received), time.monotonic() - start)
+        _stop(rt, talker, monitor)
+    return LivelinessResult(lease_s, killed_at - started, None, _since(monitor, started), [],
+                            dict(monitor.received), time.monotonic() - started)
 
 
-def watch_quiet_spell(rt, monitor, lease_s: float = 0.5, period_s: float = 0.1, quiet_from: float = 1.0,
-                      quiet_until: float = 2.5, duration_s: float = 3.5) -> LivelinessResult:
-    """Start :class:`LivelinessTalker` in a child process and watch ``monitor`` for ``duration_s`` seconds.
+def watch_quiet_spell(rt, monitor, talker, duration_s: float = 3.5) -> LivelinessResult:
+    """Watch ``monitor`` for ``duration_s`` seconds while ``talker`` goes quiet and resumes.
 
     Args:
         rt: the kernel's runtime.
         monitor: a spinning node subscribed to ``qos_automatic`` and ``qos_manual_by_topic``, recording
-            under the labels 'automatic' and 'manual_by_topic' as for :func:`kill_talker`. It is
+            under the labels 'automatic' and 'manual_by_topic' as for :func:`watch_after_crash`. It is
             removed at the end.
-        lease_s, period_s, quiet_from, quiet_until: see :class:`LivelinessTalker`.
+        talker: a :class:`LivelinessTalker` child process just started (``rt.spawn``); it reports
+            ``start`` (with its lease and quiet spell) once both subscriptions matched, and ``lost``
+            for each liveliness-lost event. Stopped and reaped at the end.
         duration_s: seconds watched from the moment the talker matched both subscriptions.
 
     The process stays alive all along. Returns a :class:`LivelinessResult` (times since the talker
     matched), with the talker's liveliness-lost events in ``lost``.
     """
-    _check_monitor(monitor, KINDS)
-    child = rt.spawn("liveliness_talker", LivelinessTalker,
-                     params={"lease_s": lease_s, "period_s": period_s, "quiet_from": quiet_from,
-                             "quiet_until": quiet_until})
     try:
-        child.wait_for_report("start", 15.0, "the liveliness talker to match both subscriptions")
-        start = child.channel.stamped("start")[0][0]  # the child's monotonic clock is the kernel's
+        _check_monitor(monitor, KINDS)
+        settings = talker.wait_for_report("start", 15.0, "the liveliness talker to match both subscriptions")
+        start = talker.channel.stamped("start")[0][0]  # the child's monotonic clock is the kernel's
         time.sleep(max(0.0, start + duration_s - time.monotonic()))  # the quiet spell passes meanwhile
-        lost = [(t - start, data["total_count"]) for t, data in child.channel.stamped("lost")]
+        lost = [(t - start, data["total_count"]) for t, data in talker.channel.stamped("lost")]
     finally:
-        rt.stop_child("liveliness_talker")
-        rt.remove(monitor)
-    return LivelinessResult(lease_s, quiet_from, quiet_until, _since(monitor, start, duration_s), lost,
-                            dict(monitor.received), duration_s)
+        _stop(rt, talker, monitor)
+    return LivelinessResult(settings["lease_s"], settings["quiet_from"], settings["quiet_until"],
+                            _since(monitor, start, duration_s), lost, dict(monitor.received), duration_s)
 
 
 def plot_liveliness(results: list[LivelinessResult], titles: list[str]):

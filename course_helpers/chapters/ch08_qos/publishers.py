@@ -80,8 +80,9 @@ class LivelinessTalker(Node):
 
     Publishes on ``qos_automatic`` (AUTOMATIC) and ``qos_manual_by_topic`` (MANUAL_BY_TOPIC) every
     ``period_s`` from the moment both are matched, except from ``quiet_from`` to ``quiet_until``
-    seconds after that. It reports ``start`` when both matched, and each liveliness-lost event of
-    the manual publisher as ``lost`` (``report`` sends a result to the kernel).
+    seconds after that. It reports ``start`` (with its lease and quiet spell) when both matched, and
+    each liveliness-lost event of the manual publisher as ``lost`` (``report`` sends a result to the
+    kernel).
     """
 
     def __init__(self, lease_s: float = 0.5, period_s: float = 0.1, quiet_from: float = 1.0,
@@ -96,7 +97,7 @@ class LivelinessTalker(Node):
         self.manual = self.create_publisher(
             String, "qos_manual_by_topic", manual,
             event_callbacks=PublisherEventCallbacks(liveliness=self.on_liveliness_lost))
-        self.quiet = (quiet_from, quiet_until)
+        self.lease_s, self.quiet = lease_s, (quiet_from, quiet_until)
         self.started_at: float | None = None  # time.monotonic() when both topics were matched
         self.timer = self.create_timer(period_s, self.tick)  # period in seconds
 
@@ -108,7 +109,7 @@ class LivelinessTalker(Node):
         if self.started_at is None:
             if self.automatic.get_subscription_count() and self.manual.get_subscription_count():
                 self.started_at = now
-                report("start")
+                report("start", lease_s=self.lease_s, quiet_from=self.quiet[0], quiet_until=self.quiet[1])
             return
         if not self.quiet[0] <= now - self.started_at < self.quiet[1]:
             for publisher in (self.automatic, self.manual):
