@@ -1,6 +1,6 @@
-"""Chapter 02's managed node and its C++ program on rcl, as the notebook writes them.
+"""The managed node (chapter 04, where services are known) and chapter 02's C++ program on rcl.
 
-The lifecycle classes and the C++ source live in the notebook's cells (that is where students read
+The lifecycle classes and the C++ source live in the notebooks' cells (that is where students read
 and change them); these tests take them from there and run them for real: rclpy's lifecycle
 services over Fast DDS, and a program compiled with this machine's C++ compiler against the venv's
 rcl, run as a course child process and heard by a Python subscriber.
@@ -25,23 +25,24 @@ from course_helpers.chapters.ch02_executors.rcl_programs import NO_COMPILER, Rcl
 
 from .conftest import REPO
 
-NOTEBOOK = os.path.join(REPO, "notebooks", "02_nodes_and_executors.ipynb")
+CHAPTER_02 = os.path.join(REPO, "notebooks", "02_nodes_and_executors.ipynb")  # the C++ appendix
+CHAPTER_04 = os.path.join(REPO, "notebooks", "04_services.ipynb")  # the managed node
 
 
-def cell_source(cell_id: str) -> str:
-    """The source of the notebook's code cell ``cell_id``."""
-    with open(NOTEBOOK, encoding="utf-8") as handle:
+def cell_source(cell_id: str, notebook: str = CHAPTER_02) -> str:
+    """The source of the code cell ``cell_id`` of ``notebook``."""
+    with open(notebook, encoding="utf-8") as handle:
         cells = json.load(handle)["cells"]
     found = [c for c in cells if c.get("id") == cell_id]
-    assert found, f"no cell {cell_id!r} in {NOTEBOOK}"
+    assert found, f"no cell {cell_id!r} in {notebook}"
     return "".join(found[0]["source"])
 
 
-def notebook_classes(*cell_ids: str) -> dict:
+def notebook_classes(*cell_ids: str, notebook: str = CHAPTER_04) -> dict:
     """Run the notebook's class cells (definitions only) and return what they define."""
-    namespace = {"Node": Node, "String": String, "time": time}
+    namespace = {"Node": Node, "time": time}
     for cell_id in cell_ids:
-        exec(compile(cell_source(cell_id), f"<notebook cell {cell_id}>", "exec"), namespace)  # noqa: S102
+        exec(compile(cell_source(cell_id, notebook), f"<notebook cell {cell_id}>", "exec"), namespace)  # noqa: S102
     return namespace
 
 

@@ -15,11 +15,18 @@ from course_interfaces.action import Navigate
 from course_interfaces.srv import AddTwoInts
 from rclpy.action import ActionClient, ActionServer
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from course_helpers import CourseError
-from course_helpers.chapters.ch04_services import IsolatedExecutor, measure_round_trips, run_deadlock_demo
+from course_helpers.chapters.ch04_services import (
+    AdderServer,
+    IsolatedExecutor,
+    Sandbox,
+    measure_round_trips,
+    spin_until_answered,
+)
 from course_helpers.chapters.ch05_actions import FeedbackProgress, action_parts, status_name
 from course_helpers.chapters.ch06_parameters import (
     NodeLaunch,
@@ -41,8 +48,8 @@ pytestmark = pytest.mark.timing
 class BlockingCaller(Node):
     """Calls add_two_ints synchronously inside a timer callback (deadlocks on one thread)."""
 
-    def __init__(self, callback_group=None):
-        super().__init__("blocking_caller")
+    def __init__(self, callback_group=None, **kwargs):
+        super().__init__("blocking_caller", **kwargs)
         self.answer = None
         self.client = self.create_client(AddTwoInts, "add_two_ints", callback_group=callback_group)
         self.timer = self.create_timer(0.05, self.on_timer)
@@ -55,8 +62,8 @@ class BlockingCaller(Node):
 
 
 class GroupedCaller(BlockingCaller):
-    def __init__(self):
-        super().__init__(callback_group=MutuallyExclusiveCallbackGroup())
+    def __init__(self, **kwargs):
+        super().__init__(callback_group=MutuallyExclusiveCallbackGroup(), **kwargs)
 
 
 class AsyncCaller(BlockingCaller):
@@ -68,16 +75,49 @@ class AsyncCaller(BlockingCaller):
         future.add_done_callback(lambda done: setattr(self, "answer", done.result().sum))
 
 
+class AwaitingCaller(BlockingCaller):
+    """An async timer callback that awaits the response; its client in a group of its own or not."""
+
+    def __init__(self, own_group=True, **kwargs):
+        super().__init__(callback_group=MutuallyExclusiveCallbackGroup() if own_group else None, **kwargs)
+
+    async def on_timer(self):
+        if not self.client.service_is_ready():
+            return
+        self.timer.cancel()
+        self.answer = (await self.client.call_async(AddTwoInts.Request(a=20, b=22))).sum
+
+
+def deadlock_demo(caller_class, threads=1, timeout_s=2.0, **caller_kwargs):
+    """Chapter 04's wiring: one executor spins an adder and the caller, in a sandbox of their own."""
+    with Sandbox() as sandbox:
+        context = sandbox.context
+        executor = (SingleThreadedExecutor(context=context) if threads == 1
+                    else MultiThreadedExecutor(num_threads=threads, context=context))
+        server = AdderServer(context=context)
+        caller = caller_class(context=context, **caller_kwargs)
+        executor.add_node(server)
+        executor.add_node(caller)
+        return spin_until_answered(sandbox, executor, caller, server, timeout_s=timeout_s)
+
+
 def test_deadlock_demo_reports_the_deadlock_and_leaves_the_runtime_working(rt):
-    outcome = run_deadlock_demo(BlockingCaller, timeout_s=1.0)
+    outcome = deadlock_demo(BlockingCaller, timeout_s=1.0)
     assert outcome.deadlocked
-    assert str(outcome).startswith("deadlocked: the call did not return within 1 s")
-    assert run_deadlock_demo(BlockingCaller, executor="multi", timeout_s=1.0).deadlocked
+    assert str(outcome) == ("deadlocked: the call did not return within 1 s (BlockingCaller on a "
+                            "single-threaded executor; the server never even saw the request)")
+    assert deadlock_demo(BlockingCaller, threads=4, timeout_s=1.0).deadlocked
     # the kernel's own executor was never involved: it still delivers messages
     rt.add(Talker, rate_hz=50)
     listener = rt.add(Listener)
     rt.wait_until(lambda: len(listener.heard) >= 3, 5, "messages after the deadlock demo")
     assert [t.name for t in threading.enumerate()].count("isolated-executor") == 0
+
+
+def test_an_awaiting_callback_whose_client_shares_its_group_never_gets_the_reply(rt):
+    outcome = deadlock_demo(AwaitingCaller, own_group=False, timeout_s=1.0)
+    assert outcome.deadlocked and outcome.server_answered == 1, str(outcome)
+    assert str(outcome).endswith("the server answered, but the reply was never taken)")
 
 
 class ForeverCaller(Node):
@@ -123,18 +163,28 @@ def test_isolated_executor_leaves_no_half_built_node(rt):
         IsolatedExecutor().add(BrokenAfterInit)
 
 
-@pytest.mark.parametrize("caller, executor", [(AsyncCaller, "single"), (GroupedCaller, "multi")])
-def test_fixed_callers_complete(rt, caller, executor):
-    outcome = run_deadlock_demo(caller, executor=executor)
+@pytest.mark.parametrize("caller, threads", [(AsyncCaller, 1), (AwaitingCaller, 1), (GroupedCaller, 4)])
+def test_fixed_callers_complete(rt, caller, threads):
+    outcome = deadlock_demo(caller, threads=threads, timeout_s=10.0)
     assert outcome.completed and outcome.answer == 42, str(outcome)
     assert str(outcome).startswith("completed:")
 
 
-def test_deadlock_demo_rejects_bad_arguments():
-    with pytest.raises(CourseError, match="executor must be"):
-        run_deadlock_demo(BlockingCaller, executor="threads")
-    with pytest.raises(CourseError, match="timeout_s"):
-        run_deadlock_demo(BlockingCaller, timeout_s=0)
+def test_the_sandbox_refuses_what_it_cannot_run(rt):
+    with pytest.raises(CourseError, match="IsolatedExecutor|executor must be"):
+        IsolatedExecutor("threads")
+    with pytest.raises(CourseError, match="`with` block"):
+        Sandbox().spin(SingleThreadedExecutor(context=rt.context))
+    with Sandbox(namespace="/refusals") as sandbox:
+        with pytest.raises(CourseError, match="context=sandbox.context"):
+            sandbox.spin(SingleThreadedExecutor(context=rt.context))
+        executor = SingleThreadedExecutor(context=sandbox.context)
+        with pytest.raises(CourseError, match="timeout_s"):
+            spin_until_answered(sandbox, executor, None, None, timeout_s=0)
+        sandbox.spin(executor)
+        with pytest.raises(CourseError, match="spins an executor already"):
+            sandbox.spin(SingleThreadedExecutor(context=sandbox.context))
+    assert sandbox.context is None and "isolated-executor" not in [t.name for t in threading.enumerate()]
 
 
 def test_round_trip_measurement_shows_publish_does_not_wait(rt):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import os
 import re
 import subprocess
 
@@ -16,13 +18,16 @@ from course_helpers.chapters.ch09_packages import (
     interface_env,
     kernel_prefix,
     load_interfaces,
+    read_package,
     running_processes,
     stop_process,
+    write_package_files,
 )
 from course_helpers.chapters.ch09_packages.progress import BuildSteps, short_line
 from course_helpers.checks.ch09_packages import DEPENDENCIES, EXECUTABLE, NODE, PACKAGE, TOPIC, check_package
 from course_helpers.nodes import Talker
 from course_helpers.solutions.ch09_packages import reference_package
+from tools.grading import source as grading_source
 
 from .conftest import REPO
 
@@ -244,3 +249,62 @@ def test_kernel_prefix_lasts_for_the_process():
     assert first.parent.name == "warehouse_msgs" and first.parent.parent.is_dir()
     with pytest.raises(CourseError, match="REP 144"):
         kernel_prefix("Bad-Name")
+
+
+# ---------------------------------------------------------------------- the exercise's files on disk
+WRITEFILE = "%%writefile {my_package_dir}/"
+EMPTY_FILE = r"\(my_package_dir / '(\w+)' / '([\w.]+)'\)\.write_text"
+
+
+def _notebook() -> dict:
+    path = os.path.join(REPO, "notebooks", "09_packages_and_interfaces.ipynb")
+    with open(path, encoding="utf-8") as handle:
+        return json.load(handle)
+
+
+def test_read_package_gives_the_checker_the_files_a_folder_holds(tmp_path):
+    folder = write_package_files(tmp_path / "robot_heartbeat", reference_package())
+    (folder / "robot_heartbeat" / "__pycache__").mkdir()
+    (folder / "robot_heartbeat" / "__pycache__" / "heartbeat.cpython-311.pyc").write_bytes(b"\x00\xff")
+    (folder / ".ipynb_checkpoints").mkdir()
+    (folder / ".ipynb_checkpoints" / "setup-checkpoint.py").write_text("stale")
+    assert read_package(folder) == reference_package()  # caches and hidden files left out
+    (folder / "logo.png").write_bytes(b"\x89PNG\xff\xfe")
+    with pytest.raises(CourseError, match="logo.png .* is not UTF-8 text"):
+        read_package(folder)
+    with pytest.raises(CourseError, match="is not a folder: run the cells that write the package first"):
+        read_package(tmp_path / "never_written")
+    with pytest.raises(CourseError, match="leaves the package directory"):
+        write_package_files(folder, {"../outside.txt": "x"})
+
+
+def test_the_exercise_cells_write_every_file_of_the_package():
+    """The notebook's %%writefile cells and its folder cell make the same files as the reference package."""
+    written = set()
+    for cell in _notebook()["cells"]:
+        text = "".join(cell["source"])
+        if cell["cell_type"] == "code" and text.startswith(WRITEFILE):
+            written.add(text.split("\n", 1)[0][len(WRITEFILE):])
+        elif cell["cell_type"] == "code":  # the empty files, made by the folder cell
+            written |= {f"{a}/{b}" for a, b in re.findall(EMPTY_FILE, text)}
+    assert written == set(reference_package())
+
+
+def test_nbgrader_grades_the_files_the_student_wrote(tmp_path):
+    """The instructor source has a solution cell right before the checker that writes the reference
+    files over the student's; the release keeps only its comment, so the student's files are graded."""
+    chapter = grading_source.load_chapter(grading_source.NOTEBOOKS / "09_packages_and_interfaces.ipynb")
+    (exercise,) = chapter.graded
+    assert exercise.files_reader == "course_helpers.chapters.ch09_packages"
+    cells = grading_source.build_source(chapter)["cells"]
+    index = next(i for i, c in enumerate(cells)
+                 if c["metadata"].get("nbgrader", {}).get("grade_id") == exercise.grade_id)
+    answer, check = cells[index], cells[index + 1]
+    assert check["metadata"]["nbgrader"]["grade_id"] == exercise.grade_id + "_check"
+    assert "check_package(read_package(my_package_dir))" in "".join(check["source"])
+    text = "".join(answer["source"])
+    skeleton, solution = text.split(grading_source.BEGIN)
+    assert "%%writefile cells above" in skeleton and "write_package_files" not in skeleton
+    namespace = {"my_package_dir": tmp_path / "robot_heartbeat"}
+    exec(compile(solution.split(grading_source.END)[0], "<solution cell>", "exec"), namespace)  # noqa: S102
+    assert read_package(tmp_path / "robot_heartbeat") == reference_package()

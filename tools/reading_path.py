@@ -24,7 +24,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEEP_DIVE = "deep-dive"
 WORDS_PER_MINUTE = 200
 RUN_TIME_KEY = "course_run_s"
-HEADING = re.compile(r"^(#{1,6})\s", re.M)
+HEADING = re.compile(r"^ {0,3}(#{1,6})\s", re.M)
 CODE_BLOCK = re.compile(r"```.*?```", re.S)
 WORD = re.compile(r"[A-Za-z0-9][A-Za-z0-9'’_-]*")
 
@@ -48,11 +48,15 @@ class Chapter:
 
 
 def heading_level(cell: dict) -> int | None:
-    """The level of the first heading a markdown cell starts with, or None."""
+    """The level of a markdown cell's highest heading (the fewest ``#``), or None if it has none.
+
+    That is JupyterLab's rule for collapsing: a cell with a heading anywhere in it ends a collapsed
+    section of the same or a deeper level, and is shown whole. Headings inside code blocks do not count.
+    """
     if cell["cell_type"] != "markdown":
         return None
-    match = HEADING.match("".join(cell["source"]).lstrip())
-    return len(match.group(1)) if match else None
+    levels = [len(hashes) for hashes in HEADING.findall(CODE_BLOCK.sub(" ", "".join(cell["source"])))]
+    return min(levels) if levels else None
 
 
 def prose_words(text: str) -> int:

@@ -1,11 +1,11 @@
 """Chapter 04 (services): the deadlock demo and the topic-vs-service latency measurement.
 
-* :func:`run_deadlock_demo` runs a node that calls a service from inside a callback
-  on its *own* executor and context, in a thread of its own, and reports whether
-  the call returned within a time limit. A deadlocked demo is unblocked and torn
-  down afterwards, so the kernel's runtime never hangs.
-* :class:`IsolatedExecutor` is the sandbox behind it: nodes in their own context and
-  executor thread, torn down even if a callback hangs in ``client.call()``.
+* :class:`Sandbox` gives the deadlock demo a context of its own and a thread for the
+  executor the notebook wires in it; it is torn down even if a callback hangs in
+  ``client.call()``, so the kernel's runtime never hangs. :func:`spin_until_answered`
+  runs such an executor and reports whether the caller got its answer within a time
+  limit. :class:`IsolatedExecutor` is a sandbox that makes its executor itself (the
+  checkers use it).
 * :func:`measure_round_trips` times, against a node in a child process, how long a
   caller waits for ``publish()``, a topic message, a topic ping-pong and a service
   call; :func:`plot_round_trips` draws the result.
@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass, field
 
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Int64
 
@@ -65,33 +65,30 @@ class AdderServer(Node):
 
 
 # ---------------------------------------------------------------------- the sandbox
-class IsolatedExecutor:
-    """Nodes in their own rclpy context and executor thread, torn down even if a callback hangs.
+class Sandbox:
+    """A context of its own for nodes that may deadlock, and a thread that spins their executor.
 
-    Use it as a context manager::
+    The notebook wires the executor itself; the sandbox only runs it, and tears everything down
+    even if a callback hangs::
 
-        with IsolatedExecutor('single', namespace='/deadlock_demo') as box:
-            server = box.add(AdderServer)
-            caller = box.add(BlockingCaller)
-            box.wait_for(lambda: caller.answer is not None, timeout_s=2.0)
+        with Sandbox() as sandbox:
+            executor = SingleThreadedExecutor(context=sandbox.context)
+            caller = BlockingCaller(context=sandbox.context)
+            executor.add_node(caller)
+            sandbox.spin(executor)
+            sandbox.wait_for(lambda: caller.answer is not None, timeout_s=2.0)
 
     Args:
-        executor: 'single' or 'multi' (a SingleThreadedExecutor or a MultiThreadedExecutor).
-        namespace: given to every node (a global remapping), so that its services do not
-            clash with the notebook's own.
-        threads: worker threads of the multi-threaded executor.
+        namespace: given to every node of the context (a global remapping), so that its services do
+            not clash with the notebook's own.
 
-    On exit, any service call still waiting is failed on purpose, which releases a
-    callback stuck in ``client.call()``; then the thread is joined and the context shut
-    down. Exceptions that callbacks raised while the sandbox ran are in ``errors``.
+    On exit, any service call still waiting is failed on purpose, which releases a callback stuck
+    in ``client.call()``; then the thread is joined, the nodes destroyed and the context shut down.
+    Exceptions that callbacks raised while the sandbox ran are in ``errors``.
     """
 
-    def __init__(self, executor: str = "single", namespace: str = DEMO_NAMESPACE, threads: int = 4):
-        if executor not in EXECUTOR_KINDS:
-            raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
-        self.kind = executor
+    def __init__(self, namespace: str = DEMO_NAMESPACE):
         self.namespace = check_namespace(namespace)
-        self.threads = threads
         self.errors: list[str] = []
         self.nodes: list[Node] = []
         self.context: Context | None = None
@@ -99,35 +96,38 @@ class IsolatedExecutor:
         self._spinner: SpinThread | None = None
         self._closing = False
 
-    def __enter__(self) -> IsolatedExecutor:
+    def __enter__(self):
         domain_id = get_runtime().domain.domain_id  # same domain: the kernel can see these nodes
         self.context = Context()
         args = ["--ros-args", "--disable-stdout-logs", "-r", f"__ns:={self.namespace}"]
         init_context(self.context, domain_id, args)
         self._closing = False
-        self.executor = plain_executor(self.kind, self.context, self.threads)
-        self._spinner = SpinThread(self.executor, "isolated-executor", self._record_error).start()
         return self
 
     def __exit__(self, *exc) -> bool:
         self.close()
         return False
 
-    def add(self, node_class, *args, **kwargs) -> Node:
-        """Build ``node_class(*args, **kwargs)`` in this sandbox's context and spin it; returns the node.
+    def spin(self, executor) -> None:
+        """Spin ``executor`` (made with ``context=sandbox.context``, its nodes added) in the sandbox's thread.
 
-        The class may call ``super().__init__('name')`` without a context: the node joins
-        the sandbox's context anyway. Raises :class:`CourseError` outside a ``with`` block or
-        if the class builds no Node.
+        Raises :class:`CourseError` outside a ``with`` block, for an executor of another context, or
+        when the sandbox spins one already.
         """
         if self.context is None:
-            raise CourseError("use IsolatedExecutor in a `with` block before adding nodes")
-        node = build_nodes(self.context, node_class, *args, **kwargs)
-        if not isinstance(node, Node):
-            raise CourseError(f"{getattr(node_class, '__name__', node_class)!r} did not build an rclpy Node")
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
+            raise CourseError("use the sandbox in a `with` block before spinning in it")
+        if executor.context is not self.context:
+            raise CourseError("make the executor with context=sandbox.context, so that it spins the "
+                              "sandbox's nodes and nothing of the kernel")
+        if self.executor is not None:
+            raise CourseError("this sandbox spins an executor already: use a new sandbox")
+        self.executor = executor
+        self.nodes += [node for node in executor.get_nodes() if node not in self.nodes]
+        self._spinner = SpinThread(executor, "isolated-executor", self._record_error).start()
+
+    @property
+    def single_threaded(self) -> bool:
+        return isinstance(self.executor, SingleThreadedExecutor)
 
     def waiting_in_a_call(self) -> str:
         """The callback of this single-threaded executor that waits in ``Client.call()``, as
@@ -136,7 +136,7 @@ class IsolatedExecutor:
         Such a callback waits for an answer that only this executor's one thread could deliver, and
         that thread is the one waiting: a deadlock, by construction, whatever the machine's speed.
         """
-        if self.kind != "single" or self._spinner is None or self._spinner.thread.ident is None:
+        if not self.single_threaded or self._spinner is None or self._spinner.thread.ident is None:
             return ""
         frame = sys._current_frames().get(self._spinner.thread.ident)
         in_call = False
@@ -167,23 +167,27 @@ class IsolatedExecutor:
         return released
 
     def close(self) -> None:
-        """Release stuck calls, stop the threads, destroy the nodes and shut the context down."""
+        """Release stuck calls, stop the thread, destroy the nodes and shut the context down."""
         if self.context is None:
             return
         self._closing = True
-        self._spinner.stop(timeout=0)  # ask the loop to end; a callback may still be stuck in a call
-        poll_until(self._released_and_idle, TEARDOWN_TIMEOUT_S, RELEASE_PERIOD_S)
-        if isinstance(self.executor, MultiThreadedExecutor):  # its worker threads: private, as above
-            self.executor._executor.shutdown(wait=not self._callbacks_running())
-        for node in self.nodes:
-            self.executor.remove_node(node)
-        self.executor.shutdown(timeout_sec=1.0)
+        if self._spinner is not None:
+            self._spinner.stop(timeout=0)  # ask the loop to end; a callback may still be stuck in a call
+            poll_until(self._released_and_idle, TEARDOWN_TIMEOUT_S, RELEASE_PERIOD_S)
+            if isinstance(self.executor, MultiThreadedExecutor):  # its worker threads: private, as above
+                self.executor._executor.shutdown(wait=not self._callbacks_running())
+        if self.executor is not None:
+            self.nodes += [node for node in self.executor.get_nodes() if node not in self.nodes]
+            for node in self.nodes:
+                self.executor.remove_node(node)
+            self.executor.shutdown(timeout_sec=1.0)
         for node in self.nodes:
             node.destroy_node()
         self.nodes.clear()
-        self._collect_task_errors()
+        if self.executor is not None:
+            self._collect_task_errors()
         self.context.try_shutdown()
-        self.context = None
+        self.context, self.executor, self._spinner = None, None, None
 
     def _released_and_idle(self) -> bool:
         """Release waiting calls (a released callback may block again in another call); True once
@@ -213,10 +217,48 @@ class IsolatedExecutor:
                 self.errors.append(f"{type(task.exception()).__name__}: {task.exception()}")
 
 
+class IsolatedExecutor(Sandbox):
+    """A :class:`Sandbox` that makes its executor itself and builds nodes into it (the checkers' way)::
+
+        with IsolatedExecutor('single', namespace='/relay_check') as box:
+            server = box.add(AdderServer)
+
+    Args:
+        executor: 'single' or 'multi' (a SingleThreadedExecutor or a MultiThreadedExecutor).
+        namespace: as for :class:`Sandbox`.
+        threads: worker threads of the multi-threaded executor.
+    """
+
+    def __init__(self, executor: str = "single", namespace: str = DEMO_NAMESPACE, threads: int = 4):
+        if executor not in EXECUTOR_KINDS:
+            raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
+        super().__init__(namespace)
+        self.kind = executor
+        self.threads = threads
+
+    def add(self, node_class, *args, **kwargs) -> Node:
+        """Build ``node_class(*args, **kwargs)`` in this sandbox's context and spin it; returns the node.
+
+        The class may call ``super().__init__('name')`` without a context: the node joins
+        the sandbox's context anyway. Raises :class:`CourseError` outside a ``with`` block or
+        if the class builds no Node.
+        """
+        if self.context is None:
+            raise CourseError("use IsolatedExecutor in a `with` block before adding nodes")
+        node = build_nodes(self.context, node_class, *args, **kwargs)
+        if not isinstance(node, Node):
+            raise CourseError(f"{getattr(node_class, '__name__', node_class)!r} did not build an rclpy Node")
+        if self.executor is None:
+            self.spin(plain_executor(self.kind, self.context, self.threads))
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+
 # ---------------------------------------------------------------------- the deadlock demo
 @dataclass
 class DeadlockOutcome:
-    """What :func:`run_deadlock_demo` saw; ``str()`` gives a one-line verdict."""
+    """What :func:`spin_until_answered` saw; ``str()`` gives a one-line verdict."""
 
     caller: str
     executor: str
@@ -243,32 +285,28 @@ class DeadlockOutcome:
         printer.text(str(self))
 
 
-def run_deadlock_demo(caller_class, executor: str = "single", timeout_s: float = 2.0,
-                      answer_attribute: str = "answer") -> DeadlockOutcome:
-    """Run ``caller_class`` next to an :class:`AdderServer` on a separate executor and report.
+def spin_until_answered(sandbox: Sandbox, executor, caller, server, timeout_s: float = 2.0,
+                        answer_attribute: str = "answer") -> DeadlockOutcome:
+    """Spin ``executor`` in ``sandbox`` until ``caller`` has its answer, for at most ``timeout_s`` seconds.
 
-    The caller is a Node class that calls ``add_two_ints`` from one of its callbacks
-    and stores the sum in ``self.answer``. Both nodes run in a sandbox (their own
-    context, ``executor='single'`` or ``'multi'``, namespace ``/deadlock_demo``). If
-    ``answer`` is still None after ``timeout_s`` seconds (0.1 to 30), the call
-    deadlocked; the sandbox is then unblocked and destroyed, and the kernel's runtime
-    is untouched. ``answer_attribute`` names the attribute to read instead of ``answer``.
+    Args:
+        sandbox: the :class:`Sandbox` whose context the executor and both nodes were made with.
+        executor: spins ``caller`` and ``server`` (the notebook wired it).
+        caller: a node that asks ``add_two_ints`` from one of its callbacks and stores the sum in
+            ``caller.answer`` (``answer_attribute`` names another attribute).
+        server: the :class:`AdderServer` it asks; it counts the requests it answered.
+        timeout_s: 0.1 to 30. An answer still missing then is a deadlock: leaving the ``with`` block
+            unblocks and destroys everything, and the kernel's runtime is untouched.
 
-    Returns a :class:`DeadlockOutcome`; raises :class:`CourseError` for a bad executor
-    or timeout.
+    Returns a :class:`DeadlockOutcome`; raises :class:`CourseError` for a bad timeout.
     """
-    if executor not in EXECUTOR_KINDS:
-        raise CourseError(f"executor must be 'single' or 'multi', got {executor!r}")
-    if not isinstance(timeout_s, (int, float)) or not 0.1 <= timeout_s <= 30:
+    if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not 0.1 <= timeout_s <= 30:
         raise CourseError(f"timeout_s must be a number of seconds from 0.1 to 30, got {timeout_s!r}")
-    name = getattr(caller_class, "__name__", str(caller_class))
-    with IsolatedExecutor(executor) as box:
-        server = box.add(AdderServer)
-        caller = box.add(caller_class)
-        completed = box.wait_for(lambda: getattr(caller, answer_attribute, None) is not None, timeout_s)
-        answer = getattr(caller, answer_attribute, None)
-        answered = server.answered
-    return DeadlockOutcome(name, executor, completed, answer, timeout_s, answered, list(box.errors))
+    sandbox.spin(executor)
+    completed = sandbox.wait_for(lambda: getattr(caller, answer_attribute, None) is not None, timeout_s)
+    kind = "single" if sandbox.single_threaded else "multi"
+    return DeadlockOutcome(type(caller).__name__, kind, completed, getattr(caller, answer_attribute, None),
+                           timeout_s, server.answered, sandbox.errors)
 
 
 # ---------------------------------------------------------------------- topics vs services

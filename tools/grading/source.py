@@ -9,6 +9,10 @@ generated notebook
 * the exercise cell becomes an nbgrader solution cell: the student's starting code first,
   then the reference solution from ``course_helpers/solutions/<checker module>.py`` between
   ``### BEGIN SOLUTION`` and ``### END SOLUTION`` (what the release removes);
+* an exercise of files (a checker called as ``check_x(read_package(folder))``: the student's answer
+  is the files that ``%%writefile`` cells wrote into ``folder``) gets a solution cell of its own
+  right before the checker cell: empty in the release, and in the instructor source the reference
+  files written over the student's (with the ``write_package_files`` of ``read_package``'s module);
 * the checker cell becomes a locked, autograded test cell worth one point per criterion the
   reference solution passes. It prints the report and ends with the score, a number nbgrader
   reads as partial credit; only a fully passed report earns every point;
@@ -35,6 +39,9 @@ SOLUTIONS_PACKAGE = "course_helpers.solutions"
 BEGIN, END = "### BEGIN SOLUTION", "### END SOLUTION"
 REPORT = "grade_report"
 SCHEMA_VERSION = 3
+FILES_READER, FILES_WRITER = "read_package", "write_package_files"  # an exercise of files (see above)
+FILES_SKELETON = ("# Exercise: your answer is the files that the %%writefile cells above wrote into\n"
+                  "# {folder}. Leave this cell as it is.\n")
 
 
 @dataclass
@@ -49,6 +56,7 @@ class Exercise:
     names: list[str]
     solution: str | None = None
     skipped: str = ""  # why the exercise is not graded (no reference solution, ...)
+    files_reader: str = ""  # an exercise of files: the module of read_package (its answer: the folder)
 
 
 @dataclass
@@ -147,6 +155,11 @@ def find_exercises(name: str, notebook: dict) -> Chapter:
                 and isinstance(last.value.func, ast.Name) and last.value.func.id in checkers):
             continue
         call = last.value
+        folder, reader = _files_folder(call, tree)
+        if folder:
+            chapter.exercises.append(Exercise(f"ex{len(chapter.exercises) + 1}_{folder}", i, i, call.func.id,
+                                              checkers[call.func.id], [folder], files_reader=reader))
+            continue
         passed = [a.id for a in [*call.args, *(k.value for k in call.keywords)] if isinstance(a, ast.Name)]
         code_index = _exercise_cell(cells, trees, i, passed)
         if code_index is None:
@@ -167,9 +180,41 @@ def find_exercises(name: str, notebook: dict) -> Chapter:
                     exercise.solution += f"\n\n{name} = {name}()\n"
         chapter.exercises.append(exercise)
     for exercise in chapter.exercises:
-        if exercise.skipped and len(exercise.names) == 1:
+        if exercise.files_reader:
+            _files_from_function(exercise, cells)
+        elif exercise.skipped and len(exercise.names) == 1:
             _value_from_function(exercise, cells)
     return chapter
+
+
+def _files_folder(call: ast.Call, tree: ast.Module) -> tuple[str, str]:
+    """``(folder, module of read_package)`` when the checker is called as ``check_x(read_package(folder))``
+    in a cell that imports ``read_package``; else ``("", "")``."""
+    if len(call.args) != 1 or call.keywords or not isinstance(call.args[0], ast.Call):
+        return "", ""
+    inner = call.args[0]
+    if not (isinstance(inner.func, ast.Name) and inner.func.id == FILES_READER and len(inner.args) == 1
+            and isinstance(inner.args[0], ast.Name)):
+        return "", ""
+    modules = [node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+               and any(alias.name == FILES_READER and not alias.asname for alias in node.names)]
+    return (inner.args[0].id, modules[0]) if modules else ("", "")
+
+
+def _files_from_function(exercise: Exercise, cells: list[dict]) -> None:
+    """An exercise of files: its reference is a function of the solutions module that returns them
+    (relative path -> text), named by the notebook's ``show_solution('chNN_x', 'function')``."""
+    exercise.skipped = (f"no reference: the chapter shows no show_solution('{exercise.module}', ...) "
+                        "that returns the package's files")
+    for cell in cells[exercise.check_index + 1:]:
+        for module, name in re.findall(r"show_solution\(\s*['\"](\w+)['\"]\s*,\s*['\"](\w+)['\"]",
+                                       _source(cell)):
+            code, _ = solution_code(module, [name]) if module == exercise.module else (None, "")
+            if code is not None and f"def {name}(" in code:
+                exercise.solution = (f"{code}\n\nfrom {exercise.files_reader} import {FILES_WRITER}\n\n"
+                                     f"{FILES_WRITER}({exercise.names[0]}, {name}())\n")
+                exercise.skipped = ""
+                return
 
 
 def _value_from_function(exercise: Exercise, cells: list[dict]) -> None:
@@ -284,8 +329,16 @@ def build_source(chapter: Chapter, points: dict[str, int] | None = None) -> dict
     points = points or {}
     nb = copy.deepcopy(chapter.notebook)
     cells = nb["cells"]
+    answers: dict[int, dict] = {}  # check cell index -> the solution cell of an exercise of files (before it)
     for exercise in chapter.graded:
-        code, check = cells[exercise.code_index], cells[exercise.check_index]
+        check = cells[exercise.check_index]
+        if exercise.files_reader:
+            answers[exercise.check_index] = code = {
+                "cell_type": "code", "execution_count": None, "id": f"{exercise.grade_id}-answer",
+                "metadata": {}, "outputs": [],
+                "source": FILES_SKELETON.format(folder=exercise.names[0])}
+        else:
+            code = cells[exercise.code_index]
         code["source"] = solution_cell(_source(code), exercise.solution)
         code["outputs"], code["execution_count"] = [], None
         code.setdefault("metadata", {})["nbgrader"] = _nbgrader(exercise.grade_id, solution=True, grade=False)
@@ -294,7 +347,8 @@ def build_source(chapter: Chapter, points: dict[str, int] | None = None) -> dict
         check["outputs"], check["execution_count"] = [], None
         check.setdefault("metadata", {})["nbgrader"] = _nbgrader(exercise.grade_id + "_check", solution=False,
                                                                  grade=True, points=n)
-    nb["cells"] = [c for i, c in enumerate(cells) if i not in set(chapter.dropped)]
+    nb["cells"] = [c for i, cell in enumerate(cells) if i not in set(chapter.dropped)
+                   for c in ([answers[i]] if i in answers else []) + [cell]]
     for cell in nb["cells"]:
         if cell["cell_type"] == "code":
             cell["outputs"], cell["execution_count"] = [], None

@@ -4,7 +4,8 @@
   (a :class:`Ros1Master` and its XML-RPC API), :func:`start_rospy`, :func:`rospy_source`;
 * ``rospy_talker.py``, ``rospy_listener.py`` - the rospy nodes, run by the system Python;
 * :mod:`.graph_watcher` - a ROS 2 node that reports which nodes it sees;
-* :mod:`.failure` - the failure experiment on both systems; :func:`side_by_side` prints results
+* :mod:`.failure` - the failure experiment on both systems (their steps: :func:`kill_the_master`,
+  :func:`kill_the_first_node`); :func:`side_by_side` prints results
   (from :mod:`course_helpers.viz.failure_table`).
 
 The notebooks use ``from course_helpers.chapters import ch01_ros1 as ros1``.
@@ -14,6 +15,8 @@ The notebooks use ``from course_helpers.chapters import ch01_ros1 as ros1``.
 
 from course_helpers.chapters.ch01_ros1.failure import (
     Ros2Side,
+    kill_the_first_node,
+    kill_the_master,
     ros1_failure_experiment,
     ros2_failure_experiment,
     start_failure_experiment,

@@ -35,6 +35,7 @@ KEEP_TALKING_TIMEOUT_S = 5.0
 MIN_WINDOW_S = 1.0  # a newcomer gets twice what the first listener needed, and at least this long
 REGISTER_WAIT_S = 5.0  # at most this long, a restarted master is watched for the newcomer to register
 START_TIMEOUT_S = 20.0
+RESTARTED_LABEL = "failure_restarted"  # the ROS 2 first node, started again
 
 _background_lock = threading.Lock()
 _background: list[threading.Thread] = []
@@ -92,24 +93,34 @@ def ros1_failure_experiment(master: Ros1Master | None = None, listener=None,
 
 
 def _measure_ros1(used: list, master, listener, topic: str) -> FailureResult:
-    """The experiment itself. Every process it uses goes into ``used``, to be stopped after: these very
-    processes, never whichever process has their label by then (a re-run cell may have started new ones)."""
+    """The experiment on a running pair (started here if there is none). Every process it uses goes into
+    ``used``, to be stopped after: these very processes, never whichever process has their label by then
+    (a re-run cell may have started new ones)."""
     if master is None or listener is None or not (master.alive and listener.alive):
         master = start_master()
         used.append(master.child)
         listener = start_talking_pair(master, topic)
     used += [master.child, listener, *filter(None, [processes.get("talker", GROUP)])]
+    return kill_the_master(master, listener, topic, used)
+
+
+def kill_the_master(master: Ros1Master, listener, topic: str, used: list) -> FailureResult:
+    """ROS 1's steps: kill the master under a talking pair, start a new listener, restart the master.
+
+    ``listener`` is the rospy listener that hears the talker; every process started here goes into
+    ``used``, for the caller to stop.
+    """
     listener.wait_for_report("heard", START_TIMEOUT_S, "the rospy listener's first message")
     first = _first_heard_s(listener)
-    known_before = master.nodes()
-    master.kill()
-    kept, kept_s = _keeps_talking(listener)
+    known_before = master.nodes()  # getSystemState, over XML-RPC
+    master.kill()  # SIGKILL: the master ends without a word to anyone
+    kept, kept_s = _keeps_talking(listener)  # 1. does the pair keep talking?
     window = _window(first)
-    newcomer = start_rospy("newcomer", "listener", master, topic)
+    newcomer = start_rospy("newcomer", "listener", master, topic)  # 2. rospy asks the master for the talker
     used.append(newcomer)
     newcomer_s = _newcomer_hears(newcomer, window)
     restarted_at = time.monotonic()
-    master = start_master(master.port)  # the same address: every node still knows it
+    master = start_master(master.port)  # 3. a new master at the same address: every node still knows it
     used.append(master.child)
     # the newcomer was still knocking (rospy retries): its registration shows the new master works
     poll_until(lambda: "/newcomer" in master.nodes(), REGISTER_WAIT_S, period=0.05)
@@ -206,29 +217,37 @@ def ros2_failure_experiment(rt, side: Ros2Side | None = None) -> FailureResult:
     """
     if side is None or not side.alive:
         side = start_ros2_side(rt)
-    restarted_label = "failure_restarted"
     try:
-        known_before = side.known_before()
-        first_s = _first_heard_s(side.listener)
-        side.first_node.kill()
-        kept, kept_s = _keeps_talking(side.listener)
-        window = _window(first_s)
-        restarted = rt.spawn(restarted_label, GraphWatcher,
-                             params={"name": side.FIRST[1:], "topic": side.topic}, env=side.env)
-        # discovery finds it whenever its process is up: on a busy machine that may take longer than
-        # the window ROS 1's newcomer got, so this one may wait as long as any start (its time is printed)
-        newcomer_s = _newcomer_hears(restarted, max(window, START_TIMEOUT_S))
-        others = {side.TALKER, side.LISTENER}
-        if not poll_until(lambda: _sees(restarted, others), START_TIMEOUT_S) or not restarted.alive:
-            raise restarted.failure("it saw the other nodes")
-        seen_at = next(t for t, data in restarted.channel.stamped("graph") if others <= set(data["nodes"]))
-        knows, restart_s = sorted(others), seen_at - restarted.started
-        return FailureResult(
-            system="ROS 2", killed=f"the first node ({side.FIRST}, SIGKILL)", first_message_s=first_s,
-            kept_talking=kept, kept_talking_s=kept_s, newcomer_heard=newcomer_s is not None,
-            newcomer_s=newcomer_s, newcomer_window_s=window,
-            after_restart=f"it saw {names(knows)} after {seconds(restart_s)}", known_before=known_before,
-            restarted_knows=knows, restart_s=restart_s,
-            notes=["the newcomer is the killed node started again: it listens to the talker too"])
+        return kill_the_first_node(rt, side)
     finally:
-        rt.stop_children([*side.LABELS, restarted_label])
+        rt.stop_children([*side.LABELS, RESTARTED_LABEL])
+
+
+def kill_the_first_node(rt, side: Ros2Side) -> FailureResult:
+    """ROS 2's steps: kill the first node's process under a talking pair, then start it again.
+
+    The restarted process is a :class:`GraphWatcher` that also listens to the talker: it is the
+    newcomer, and it tells what a restarted node knows. The caller stops the processes.
+    """
+    known_before = side.known_before()
+    first_s = _first_heard_s(side.listener)
+    side.first_node.kill()  # SIGKILL: its process ends without saying goodbye
+    kept, kept_s = _keeps_talking(side.listener)  # 1. does the pair keep talking?
+    window = _window(first_s)
+    restarted = rt.spawn(RESTARTED_LABEL, GraphWatcher,  # 2. and 3. the same node in a new process
+                         params={"name": side.FIRST[1:], "topic": side.topic}, env=side.env)
+    # discovery finds it whenever its process is up: on a busy machine that may take longer than
+    # the window ROS 1's newcomer got, so this one may wait as long as any start (its time is printed)
+    newcomer_s = _newcomer_hears(restarted, max(window, START_TIMEOUT_S))
+    others = {side.TALKER, side.LISTENER}
+    if not poll_until(lambda: _sees(restarted, others), START_TIMEOUT_S) or not restarted.alive:
+        raise restarted.failure("it saw the other nodes")
+    seen_at = next(t for t, data in restarted.channel.stamped("graph") if others <= set(data["nodes"]))
+    knows, restart_s = sorted(others), seen_at - restarted.started
+    return FailureResult(
+        system="ROS 2", killed=f"the first node ({side.FIRST}, SIGKILL)", first_message_s=first_s,
+        kept_talking=kept, kept_talking_s=kept_s, newcomer_heard=newcomer_s is not None,
+        newcomer_s=newcomer_s, newcomer_window_s=window,
+        after_restart=f"it saw {names(knows)} after {seconds(restart_s)}", known_before=known_before,
+        restarted_knows=knows, restart_s=restart_s,
+        notes=["the newcomer is the killed node started again: it listens to the talker too"])

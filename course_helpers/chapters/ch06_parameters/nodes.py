@@ -96,6 +96,7 @@ def make_configured_node(kind: str, name: str, namespace: str = "", parameters: 
 
     Returns the node; raises :class:`CourseError` for an unknown kind or a missing file.
     """
+    # rcl reads the file (--ros-args --params-file FILE); the values given here override its values
     overrides = [Parameter(key, value=value) for key, value in (parameters or {}).items()]
     cli_args = params_file_arguments(params_file) if params_file else None
     return node_class(kind)(name, namespace=namespace, parameter_overrides=overrides, cli_args=cli_args)

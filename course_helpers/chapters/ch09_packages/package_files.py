@@ -5,7 +5,10 @@
   :func:`package_xml`, :func:`setup_py` and :func:`setup_cfg` write one file each;
 * :func:`interface_package_xml` and :func:`interface_cmakelists` write the two build files
   of an interface package (ament_cmake + rosidl);
-* :func:`read_manifest` reads the name, build type and dependencies of a package.xml.
+* :func:`read_manifest` reads the name, build type and dependencies of a package.xml;
+* :func:`read_package` reads a package's folder into the files it holds (relative path -> text), the
+  form :func:`course_helpers.checks.ch09_packages.check_package` takes, and :func:`write_package_files`
+  writes such files into a folder.
 """
 
 from __future__ import annotations
@@ -185,3 +188,51 @@ def read_manifest(path: Path) -> dict:
         "build_type": (root.findtext("export/build_type") or "").strip(),
         "depends": depends,
     }
+
+
+def path_inside(base: Path, relative: str) -> Path:
+    """``base / relative``, after checking that ``relative`` is a relative path that stays inside ``base``."""
+    if not isinstance(relative, str) or not relative or Path(relative).is_absolute():
+        raise CourseError(f"paths must be relative, like 'setup.py' or 'pkg/node.py'; got {relative!r}")
+    path = (base / relative).resolve()
+    if path != base.resolve() and base.resolve() not in path.parents:
+        raise CourseError(f"path {relative!r} leaves the package directory")
+    return path
+
+
+def write_package_files(folder, files: dict[str, str]) -> Path:
+    """Write ``files`` (relative path -> text) into ``folder``, making the folders they need; returns it.
+
+    Files already there that ``files`` does not name are left as they are.
+    """
+    folder = Path(folder)
+    for relative, text in files.items():
+        path = path_inside(folder, relative)
+        if not isinstance(text, str):
+            raise CourseError(f"the content of {relative!r} must be a string, got {type(text).__name__}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    return folder
+
+
+def read_package(folder) -> dict[str, str]:
+    """The files under ``folder`` (a package's folder, as ``%%writefile`` cells wrote it): relative path
+    with ``/`` -> text, sorted by path. Python's caches (``__pycache__``) and hidden files are left out.
+
+    Raises :class:`CourseError` if ``folder`` is not a folder or holds a file that is not UTF-8 text.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise CourseError(f"{str(folder)!r} is not a folder: run the cells that write the package first")
+    files = {}
+    for path in sorted(folder.rglob("*")):
+        relative = path.relative_to(folder)
+        if not path.is_file() or "__pycache__" in relative.parts or any(
+                part.startswith(".") for part in relative.parts):
+            continue
+        try:
+            files[relative.as_posix()] = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as error:
+            raise CourseError(f"{relative.as_posix()} in {str(folder)!r} is not UTF-8 text: a package's "
+                              "files are text") from error
+    return files

@@ -37,7 +37,12 @@ from course_helpers.chapters.ch09_packages.executables import (
     stop_process,
     wait_for_process_node,
 )
-from course_helpers.chapters.ch09_packages.package_files import ament_python_files, check_package_name
+from course_helpers.chapters.ch09_packages.package_files import (
+    ament_python_files,
+    check_package_name,
+    path_inside,
+    write_package_files,
+)
 from course_helpers.core.errors import CourseError
 from course_helpers.core.processes import ChildProcess
 from course_helpers.core.spawning import CHILD_HANG_S
@@ -103,18 +108,12 @@ class Workspace:
         package_dir = self.src / name
         if package_dir.exists():
             shutil.rmtree(package_dir)
-        for relative, text in files.items():
-            path = _inside(package_dir, relative)
-            if not isinstance(text, str):
-                raise CourseError(f"the content of {relative!r} must be a string, got "
-                                  f"{type(text).__name__}")
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
+        write_package_files(package_dir, files)
         return package_dir
 
     def read(self, relative: str) -> str:
         """The text of a file in the workspace, e.g. ``ws.read('src/pkg/setup.py')``."""
-        return _inside(self.root, relative).read_text()
+        return path_inside(self.root, relative).read_text()
 
     # ---------------------------------------------------------------- building
     def colcon_command(self, packages: list[str] | None = None) -> list[str]:
@@ -186,7 +185,7 @@ class Workspace:
     # ---------------------------------------------------------------- viewing and cleaning
     def tree(self, relative: str = ".", max_depth: int = 4) -> str:
         """The workspace's files as a tree (log folders named by date are shown as one line)."""
-        top = _inside(self.root, relative)
+        top = path_inside(self.root, relative)
         title = f"{self.label}/" if top == self.root else f"{top.relative_to(self.root)}/"
         return "\n".join([title, *_tree_lines(top, "", max_depth)])
 
@@ -207,15 +206,6 @@ def _remove_workspaces() -> None:
 
 
 atexit.register(_remove_workspaces)  # the directories; the process layer stops the processes itself
-
-
-def _inside(base: Path, relative: str) -> Path:
-    if not isinstance(relative, str) or not relative or Path(relative).is_absolute():
-        raise CourseError(f"paths must be relative, like 'setup.py' or 'pkg/node.py'; got {relative!r}")
-    path = (base / relative).resolve()
-    if path != base.resolve() and base.resolve() not in path.parents:
-        raise CourseError(f"path {relative!r} leaves the package directory")
-    return path
 
 
 def _tree_lines(directory: Path, indent: str, depth: int) -> list[str]:
