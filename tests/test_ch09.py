@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import re
 import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -20,11 +22,13 @@ from course_helpers.chapters.ch09_packages import (
     stop_process,
 )
 from course_helpers.chapters.ch09_packages.progress import BuildSteps, short_line
-from course_helpers.checks.ch09_packages import DEPENDENCIES, EXECUTABLE, NODE, PACKAGE, TOPIC, check_package
+from course_helpers.chapters.ch09_packages.provisioned import dependency_closure, installed_ros_packages
+from course_helpers.checks.ch09_packages import DEPENDS, EXECUTABLE, NODE, PACKAGE, TOPIC, check_package
 from course_helpers.nodes import Talker
 from course_helpers.solutions.ch09_packages import reference_package
 
 from .conftest import REPO
+from .criteria_registry import assert_reference_criteria, failing
 
 BUILD_DIRS = re.compile(r"(^|/)(build|install|log)(/|$)")
 
@@ -81,7 +85,6 @@ def test_workspace_rerun_replaces_the_old_one(rt):
 # --------------------------------------------------------------------- checker: a wrong package per criterion
 FILES_THERE = "the files of an ament_python package are there"
 NAMED = f"package.xml names {PACKAGE} and declares the ament_python build type"
-DEPENDS = f"package.xml declares what the node imports ({', '.join(DEPENDENCIES)})"
 IDENTIFIED = "colcon identified an ament_python package"
 FINDS = f"`ros2 run {PACKAGE} {EXECUTABLE}` finds the executable"
 SHOWS_NODE = f"its process shows node {NODE} in the graph"
@@ -127,7 +130,7 @@ PACKAGE_WRONG = [
                  id="ament-cmake"),
     pytest.param(_changed("package.xml", f"<name>{PACKAGE}<", "<name>heartbeat<"), {NAMED}, id="other-name"),
     pytest.param(_changed("package.xml", "  <exec_depend>std_msgs</exec_depend>\n", ""), {DEPENDS},
-                 id="no-std-msgs-depend"),
+                 id="no-std-msgs-depend"),  # builds, and runs wherever std_msgs happens to be installed
     pytest.param(lambda files: {**files, f"resource/{PACKAGE}": None}, {"the files can be written into src/"},
                  id="marker-is-none"),
     pytest.param(_changed("setup.py", "['package.xml']", "['package.xml', 'launch/heartbeat.launch.py']"),
@@ -150,14 +153,37 @@ PACKAGE_WRONG = [
 def test_package_checker_accepts_the_reference_and_every_criterion_has_a_wrong_package(rt):
     report = check_package(reference_package())
     assert report.passed, report.summary()
-    assert {c.name for c in report.criteria} | ONLY_WHEN_FAILED <= _covered(PACKAGE_WRONG)
+    assert_reference_criteria("check_package", report)
+    assert ONLY_WHEN_FAILED <= _covered(PACKAGE_WRONG)
 
 
-@pytest.mark.parametrize("make_wrong_files, failing", PACKAGE_WRONG)
-def test_package_checker_fails_each_criterion_on_a_wrong_package(rt, make_wrong_files, failing):
+def test_a_dependency_declared_as_depend_counts_and_a_missing_one_is_named(rt):
+    as_depend = _changed("package.xml", "<exec_depend>std_msgs</exec_depend>", "<depend>std_msgs</depend>")
+    report = check_package(as_depend(reference_package()))
+    assert report.passed, report.summary()
+    no_rclpy = _changed("package.xml", "  <exec_depend>rclpy</exec_depend>\n", "")  # std_msgs lacks it
+    report = check_package(no_rclpy(reference_package()))
+    assert _failed(report) == {DEPENDS}, report.summary()
+    [depends] = [c for c in report.criteria if c.name == DEPENDS]
+    assert "where only std_msgs and what it needs" in depends.detail, depends.detail
+    assert "No module named 'rclpy'" in depends.detail and "rclpy" not in depends.hint
+
+
+def test_the_run_dependencies_of_rclpy_and_std_msgs_follow_the_installed_manifests():
+    ros = installed_ros_packages([Path(sys.prefix)])
+    rclpy_needs, std_msgs_needs = dependency_closure(["rclpy"], ros), dependency_closure(["std_msgs"], ros)
+    assert "std_msgs" not in rclpy_needs and "rclpy" not in std_msgs_needs  # each must be declared
+    # a message package brings what its generated Python imports (build_export_depend of rosidl_core_runtime)
+    assert {"rosidl_generator_py", "rosidl_parser", "builtin_interfaces"} <= std_msgs_needs
+    assert {"rcl_interfaces", "rosgraph_msgs"} <= rclpy_needs
+    assert "course_interfaces" not in rclpy_needs | std_msgs_needs
+
+
+@pytest.mark.parametrize("make_wrong_files, criteria", PACKAGE_WRONG)
+def test_package_checker_fails_each_criterion_on_a_wrong_package(rt, make_wrong_files, criteria):
     report = check_package(make_wrong_files(reference_package()))
     assert not report.passed
-    assert failing <= _failed(report), report.summary()
+    assert criteria <= _failed(report), report.summary()
 
 
 def test_package_checker_hint_tells_a_missing_entry_point_from_a_wrong_setup_cfg(rt):
@@ -244,3 +270,6 @@ def test_kernel_prefix_lasts_for_the_process():
     assert first.parent.name == "warehouse_msgs" and first.parent.parent.is_dir()
     with pytest.raises(CourseError, match="REP 144"):
         kernel_prefix("Bad-Name")
+
+
+COVERED = {"check_package": failing(PACKAGE_WRONG)}
