@@ -114,6 +114,17 @@ class BatteryWithSuccessInverted(BatteryMonitor):
         return response
 
 
+class BatteryTruncatingTheLevel(BatteryMonitor):
+    """Wrong: cuts the level to a whole percent with int() instead of rounding it, so 19.6 % shows as
+    'battery low: 19%' (12.4 % and the whole levels come out right)."""
+
+    def on_status(self, request, response):
+        super().on_status(request, response)
+        if self.level is not None:
+            response.message = response.message.replace(f"{self.level:.0f}%", f"{int(self.level)}%")
+        return response
+
+
 class BatteryThatRaises(BatteryMonitor):
     """Wrong: keeps the whole message instead of its data (the percent format then raises)."""
 
@@ -150,6 +161,8 @@ BATTERY_WRONG = [
                                        "after a reading of 20%: the message contains '20%'"}, id="decimals"),
     pytest.param(BatteryWithSuccessInverted, {AFTER_57, AFTER_12, AFTER_20}, id="success-inverted"),
     pytest.param(BatteryJudgingTheRoundedLevel, {AFTER_19}, id="rounded-before-judged"),
+    pytest.param(BatteryTruncatingTheLevel, {"after a reading of 19.6%: the message contains '20%'"},
+                 id="truncated"),
     pytest.param(BatteryThatRaises, {"callbacks raised no errors"}, id="callback-raises"),
 ]
 
