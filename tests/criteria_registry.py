@@ -8,10 +8,13 @@ then compares the record with what the test modules declare at module level:
 
 * ``COVERED = {"check_name": {criterion, ...}}``: the criteria a wrong solution of that module fails,
   built from the very tables its tests assert on (a name is there only if a test sees it fail);
-* ``EXEMPT = {"check_name": {criterion: "why no wrong solution fails it in a test"}}``.
+* ``EXEMPT = {"check_name": {criterion: "why no wrong solution fails it in a test"}}``;
+* ``ONLY_WHEN_FAILING = {"check_name": {criterion, ...}}``: criteria the checker adds only when they
+  fail ("the node can be created", "not tried: ..."), which the reference's report therefore does not
+  hold. No run can list them, so they are listed by hand, beside the tests of their checker; once
+  listed, each needs a wrong solution or an exemption like any other.
 
-A criterion the checker adds only when it fails is not in the record (the reference passes), so it
-needs neither. Reading the record and the declarations runs no ROS: the central test takes a second.
+Reading the record and the declarations runs no ROS: the central test takes a second.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from pathlib import Path
 TESTS = Path(__file__).resolve().parent
 RECORD = TESTS / "data" / "reference_criteria.json"
 UPDATE_ENV = "COURSE_UPDATE_REFERENCE_CRITERIA"  # =1: a reference test rewrites its entry instead of failing
-DECLARATIONS = ("COVERED", "EXEMPT")
+DECLARATIONS = ("COVERED", "EXEMPT", "ONLY_WHEN_FAILING")
 
 
 def read_record() -> dict[str, list[str]]:
@@ -104,46 +107,57 @@ def declaring_modules() -> list[str]:
     return found
 
 
-def declarations() -> tuple[dict[str, set[str]], dict[str, dict[str, str]], dict[str, list[str]]]:
-    """(covered, exempt, where): every test module's COVERED and EXEMPT merged by checker, and the
-    modules that declare something about each checker."""
+def declarations() -> tuple[dict[str, set[str]], dict[str, dict[str, str]], dict[str, set[str]]]:
+    """(covered, exempt, only_when_failing): every test module's COVERED, EXEMPT and ONLY_WHEN_FAILING,
+    merged by checker."""
     covered: dict[str, set[str]] = {}
     exempt: dict[str, dict[str, str]] = {}
-    where: dict[str, list[str]] = {}
+    only_when_failing: dict[str, set[str]] = {}
     for name in declaring_modules():
         module = importlib.import_module(name)
         for checker, criteria in getattr(module, "COVERED", {}).items():
             covered.setdefault(checker, set()).update(criteria)
-            where.setdefault(checker, []).append(name)
         for checker, reasons in getattr(module, "EXEMPT", {}).items():
             exempt.setdefault(checker, {}).update(reasons)
-            where.setdefault(checker, []).append(name)
-    return covered, exempt, where
+        for checker, criteria in getattr(module, "ONLY_WHEN_FAILING", {}).items():
+            only_when_failing.setdefault(checker, set()).update(criteria)
+    return covered, exempt, only_when_failing
 
 
 def gaps(checkers, record: dict[str, list[str]], covered: dict[str, set[str]],
-         exempt: dict[str, dict[str, str]]) -> list[str]:
+         exempt: dict[str, dict[str, str]],
+         only_when_failing: dict[str, set[str]] | None = None) -> list[str]:
     """What keeps "every criterion of every checker has a wrong solution that fails it" from being true,
-    one line each: a checker without a record, a recorded criterion that no wrong solution fails and
-    no exemption explains, an exemption or record of something that does not exist, an empty reason."""
+    one line each: a checker without a record; a criterion (recorded, or listed as reported only when
+    it fails) that no wrong solution fails and no exemption explains; a criterion listed as reported
+    only when failing that the reference reports; an exemption of something that is neither; a
+    declaration about a checker that does not exist; an exemption without a reason."""
+    only_when_failing = only_when_failing or {}
     problems = []
     for checker in sorted(checkers):
         if checker not in record:
             problems.append(f"{checker}: no entry in tests/data/reference_criteria.json (its reference test "
                             "must call assert_reference_criteria)")
             continue
-        for criterion in record[checker]:
+        failing_only = sorted(only_when_failing.get(checker, set()))
+        for criterion in [*record[checker], *failing_only]:
             if criterion not in covered.get(checker, set()) and criterion not in exempt.get(checker, {}):
                 problems.append(f"{checker}: {criterion}")
+        for criterion in failing_only:
+            if criterion in record[checker]:
+                problems.append(f"{checker}: {criterion!r} is listed as reported only when it fails, but the "
+                                "reference's report holds it")
     for checker in sorted(set(record) - set(checkers)):
         problems.append(f"{checker}: recorded, but no checker of that name exists")
-    for checker in sorted((set(covered) | set(exempt)) - set(checkers)):
+    for checker in sorted((set(covered) | set(exempt) | set(only_when_failing)) - set(checkers)):
         problems.append(f"{checker}: a test module declares wrong solutions for it, but no checker of that "
                         "name exists")
     for checker, reasons in sorted(exempt.items()):
         for criterion, why in sorted(reasons.items()):
-            if criterion not in record.get(checker, []):
-                problems.append(f"{checker}: exempts {criterion!r}, which its reference report does not hold")
+            known = [*record.get(checker, []), *only_when_failing.get(checker, ())]
+            if criterion not in known:
+                problems.append(f"{checker}: exempts {criterion!r}, which its reference report does not hold "
+                                "and no module lists as reported only when it fails")
             elif not str(why).strip():
                 problems.append(f"{checker}: exempts {criterion!r} without a reason")
     return problems

@@ -334,33 +334,38 @@ class NoisyWatchdog(_Watchdog):
             event_callbacks=SubscriptionEventCallbacks(deadline=self.on_deadline_missed))
 
 
+WATCHDOG_WRONG = {  # each wrong watchdog, and the criteria it fails (exactly those)
+    NamedWatchdog: [CREATED],
+    StringOdomWatchdog: ["it subscribes to /odom (nav_msgs/msg/Odometry)"],
+    TimerWatchdog: ["the subscription requests a deadline (0.2 s to 1 s)"],
+    BeltAndBracesWatchdog: ["it leaves the watching to DDS (no timer of its own)"],
+    LatchedWatchdog: ["its QoS is compatible with the odometry driver (reliable, deadline 0.2 s)"],
+    BoolAlarmWatchdog: ["it publishes on /alarm (std_msgs/msg/String)"],
+}
+WATCHDOG_TIMED_WRONG = {  # the same, for the two that get as far as the driver's run
+    SilentWatchdog: ["an alarm within 1.5 s after the odometry stopped"],
+    NoisyWatchdog: ["no alarm while odometry arrives every 0.1 s", "no alarm once odometry flows again"],
+}
+
+
 def test_watchdog_checker_accepts_the_reference_solution(rt):
     report = check_deadline_watchdog(reference.OdomWatchdog, rt)
     assert report.passed, report.summary()
+    assert_reference_criteria("check_deadline_watchdog", report)
     assert rt.nodes() == [] and rt.children() == {}
 
 
 def test_watchdog_checker_rejects_each_wrong_part_before_running_the_driver(rt):
-    expected = {
-        NamedWatchdog: CREATED,
-        StringOdomWatchdog: "it subscribes to /odom (nav_msgs/msg/Odometry)",
-        TimerWatchdog: "the subscription requests a deadline (0.2 s to 1 s)",
-        BeltAndBracesWatchdog: "it leaves the watching to DDS (no timer of its own)",
-        LatchedWatchdog: "its QoS is compatible with the odometry driver (reliable, deadline 0.2 s)",
-        BoolAlarmWatchdog: "it publishes on /alarm (std_msgs/msg/String)",
-    }
-    for wrong, criterion in expected.items():
+    for wrong, criteria in WATCHDOG_WRONG.items():
         report = check_deadline_watchdog(wrong, rt)
-        assert _failed(report) == [criterion], (wrong.__name__, report.summary())
+        assert _failed(report) == criteria, (wrong.__name__, report.summary())
     assert rt.children() == {}
 
 
 def test_watchdog_checker_rejects_a_watchdog_that_never_alarms_or_always_does(rt):
-    silent = check_deadline_watchdog(SilentWatchdog, rt)
-    assert _failed(silent) == ["an alarm within 1.5 s after the odometry stopped"], silent.summary()
-    noisy = check_deadline_watchdog(NoisyWatchdog, rt)
-    assert _failed(noisy) == ["no alarm while odometry arrives every 0.1 s",
-                              "no alarm once odometry flows again"], noisy.summary()
+    for wrong, criteria in WATCHDOG_TIMED_WRONG.items():
+        report = check_deadline_watchdog(wrong, rt)
+        assert _failed(report) == criteria, (wrong.__name__, report.summary())
 
 
 # ---------------------------------------------------------------- 08.4: heartbeat and monitor
@@ -491,35 +496,50 @@ class OneWayHeartbeat(reference.SwitchableHeartbeat):
             self.beating = False
 
 
+HEARTBEAT_WRONG = {  # each pair of wrong nodes, and the criteria it fails (exactly those)
+    (NamedHeartbeat, NamedMonitor): [CREATED, CREATED],
+    (BoolHeartbeat, MisspeltMonitor): ["heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)",
+                                       "monitor: it subscribes to /heartbeat (std_msgs/msg/String)"],
+    (AutomaticHeartbeat, ImpatientMonitor): [
+        "heartbeat: MANUAL_BY_TOPIC with a lease of at most 1 s",
+        "monitor: compatible with a MANUAL_BY_TOPIC heartbeat, lease 0.5 s"],
+    (DeafHeartbeat, MuteMonitor): ["heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
+                                   "monitor: it publishes on /heartbeat/status (std_msgs/msg/String)"],
+}
+HEARTBEAT_TIMED_WRONG = {  # the same for pairs that get as far as the timed scenarios (one test each)
+    (NeverBeatingHeartbeat, AlarmistMonitor): [
+        "heartbeat: a monitor sees it alive",
+        "monitor: says nothing is lost while the heartbeat asserts every 0.1 s"],
+    (SeldomHeartbeat, LostOnlyMonitor): ["heartbeat: alive through 6 leases, with at most 1 of them lost",
+                                         "monitor: publishes 'alive' when the heartbeat is back"],
+    (StubbornHeartbeat, DeafMonitor): ["heartbeat: lost within 2 s of a False on /heartbeat/enable",
+                                       "monitor: publishes 'lost' within 2 s after the heartbeat stopped",
+                                       "monitor: publishes 'alive' when the heartbeat is back"],
+    (OneWayHeartbeat, reference.HeartbeatMonitor): ["heartbeat: alive again after a True"],
+}
+
+
+def _fails_exactly_its_criteria(rt, heartbeat, monitor, table) -> None:
+    report = check_heartbeat(heartbeat, monitor, rt)
+    assert _failed(report) == table[heartbeat, monitor], (heartbeat.__name__, monitor.__name__,
+                                                          report.summary())
+
+
 def test_heartbeat_checker_accepts_the_reference_solution(rt):
     report = check_heartbeat(reference.SwitchableHeartbeat, reference.HeartbeatMonitor, rt)
     assert report.passed, report.summary()
+    assert_reference_criteria("check_heartbeat", report)
     assert rt.nodes() == [] and rt.children() == {}
 
 
 def test_heartbeat_checker_rejects_wrong_endpoints_and_qos(rt):
-    expected = {
-        (NamedHeartbeat, NamedMonitor): [CREATED, CREATED],
-        (BoolHeartbeat, MisspeltMonitor): [
-            "heartbeat: it has a publisher on /heartbeat (std_msgs/msg/String)",
-            "monitor: it subscribes to /heartbeat (std_msgs/msg/String)"],
-        (AutomaticHeartbeat, ImpatientMonitor): ["heartbeat: MANUAL_BY_TOPIC with a lease of at most 1 s",
-                                                 "monitor: compatible with a MANUAL_BY_TOPIC heartbeat, "
-                                                 "lease 0.5 s"],
-        (DeafHeartbeat, MuteMonitor): ["heartbeat: it subscribes to /heartbeat/enable (std_msgs/msg/Bool)",
-                                       "monitor: it publishes on /heartbeat/status (std_msgs/msg/String)"],
-    }
-    for (heartbeat, monitor), criteria in expected.items():
-        report = check_heartbeat(heartbeat, monitor, rt)
-        assert _failed(report) == criteria, (heartbeat.__name__, monitor.__name__, report.summary())
+    for heartbeat, monitor in HEARTBEAT_WRONG:
+        _fails_exactly_its_criteria(rt, heartbeat, monitor, HEARTBEAT_WRONG)
     assert rt.children() == {}
 
 
 def test_heartbeat_checker_rejects_a_silent_heartbeat_and_an_alarmist_monitor(rt):
-    report = check_heartbeat(NeverBeatingHeartbeat, AlarmistMonitor, rt)
-    assert _failed(report) == ["heartbeat: a monitor sees it alive",
-                               "monitor: says nothing is lost while the heartbeat asserts every 0.1 s"], \
-        report.summary()
+    _fails_exactly_its_criteria(rt, NeverBeatingHeartbeat, AlarmistMonitor, HEARTBEAT_TIMED_WRONG)
 
 
 def test_time_without_a_writer_counts_only_the_window_and_starts_from_the_last_state_before_it():
@@ -545,24 +565,32 @@ def test_time_the_watcher_could_not_see_is_left_out_of_the_judgement():
 
 
 def test_heartbeat_checker_rejects_a_seldom_heartbeat_and_a_monitor_that_never_says_alive(rt):
-    report = check_heartbeat(SeldomHeartbeat, LostOnlyMonitor, rt)
-    assert _failed(report) == ["heartbeat: alive through 6 leases, with at most 1 of them lost",
-                               "monitor: publishes 'alive' when the heartbeat is back"], report.summary()
+    _fails_exactly_its_criteria(rt, SeldomHeartbeat, LostOnlyMonitor, HEARTBEAT_TIMED_WRONG)
 
 
 def test_heartbeat_checker_rejects_a_heartbeat_that_ignores_the_command_and_a_deaf_monitor(rt):
-    report = check_heartbeat(StubbornHeartbeat, DeafMonitor, rt)
-    assert _failed(report) == ["heartbeat: lost within 2 s of a False on /heartbeat/enable",
-                               "monitor: publishes 'lost' within 2 s after the heartbeat stopped",
-                               "monitor: publishes 'alive' when the heartbeat is back"], report.summary()
+    _fails_exactly_its_criteria(rt, StubbornHeartbeat, DeafMonitor, HEARTBEAT_TIMED_WRONG)
 
 
 def test_heartbeat_checker_rejects_a_heartbeat_that_never_comes_back(rt):
-    report = check_heartbeat(OneWayHeartbeat, reference.HeartbeatMonitor, rt)
-    assert _failed(report) == ["heartbeat: alive again after a True"], report.summary()
+    _fails_exactly_its_criteria(rt, OneWayHeartbeat, reference.HeartbeatMonitor, HEARTBEAT_TIMED_WRONG)
 
 
 def test_the_solutions_are_offered_by_show_solution():
     for name in ("RobotCmdListener", "OdomWatchdog", "SwitchableHeartbeat", "HeartbeatMonitor"):
         assert f"class {name}(Node)" in solution_source("ch08_qos", name)
     assert "def channel_qos()" in solution_source("ch08_qos", "channel_qos")
+
+
+COVERED = {
+    "check_channel_qos": set(NOT_A_DICT + UNFINISHED + EVERYTHING_WRONG),
+    "check_mismatched_subscriber": set(STARTER_FAILS).union(*LISTENER_WRONG.values()),
+    "check_deadline_watchdog": set().union(*WATCHDOG_WRONG.values(), *WATCHDOG_TIMED_WRONG.values()),
+    "check_heartbeat": set().union(*HEARTBEAT_WRONG.values(), *HEARTBEAT_TIMED_WRONG.values()),
+}
+ONLY_WHEN_FAILING = {
+    "check_channel_qos": set(NOT_A_DICT),
+    "check_mismatched_subscriber": {"the node starts"},
+    "check_deadline_watchdog": {CREATED},
+    "check_heartbeat": {CREATED},
+}

@@ -308,3 +308,4 @@ COVERED = {
     "check_environment": recorded_names_starting_with("check_environment", WRONG_FACTS),
     "check_private_robot": failing(ROBOT_WRONG, 2),
 }
+ONLY_WHEN_FAILING = {"check_private_robot": {"private_context(domain_id) runs"}}
