@@ -40,7 +40,7 @@ def test_every_criterion_of_every_checker_has_a_wrong_solution_that_fails_it():
                           + "\n  ".join(problems))
 
 
-def test_the_checkers_are_found_in_every_module_of_the_package():
+def test_the_checkers_are_found_by_introspection_in_their_modules():
     found = checkers()
     assert {"check_environment", "check_private_robot", "check_package", "check_heartbeat",
             "check_burst_qos", "check_fleet_estop"} <= set(found)
