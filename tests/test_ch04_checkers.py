@@ -18,8 +18,10 @@ from rclpy.qos import qos_profile_sensor_data
 from std_msgs.msg import Float32
 from std_srvs.srv import SetBool, Trigger
 
-from course_helpers.checks.ch04_services import check_battery_server, check_relay_server
+from course_helpers.checks.ch04_services import BATTERY_CASES, check_battery_server, check_relay_server
 from course_helpers.solutions.ch04_services import BatteryMonitor, SumRelay
+
+from .criteria_registry import assert_reference_criteria
 
 
 def _failed(report) -> set[str]:
@@ -114,6 +116,17 @@ class BatteryWithSuccessInverted(BatteryMonitor):
         return response
 
 
+class BatteryTruncatingTheLevel(BatteryMonitor):
+    """Wrong: cuts the level to a whole percent with int() instead of rounding it, so 19.6 % shows as
+    'battery low: 19%' (12.4 % and the whole levels come out right)."""
+
+    def on_status(self, request, response):
+        super().on_status(request, response)
+        if self.level is not None:
+            response.message = response.message.replace(f"{self.level:.0f}%", f"{int(self.level)}%")
+        return response
+
+
 class BatteryThatRaises(BatteryMonitor):
     """Wrong: keeps the whole message instead of its data (the percent format then raises)."""
 
@@ -150,6 +163,8 @@ BATTERY_WRONG = [
                                        "after a reading of 20%: the message contains '20%'"}, id="decimals"),
     pytest.param(BatteryWithSuccessInverted, {AFTER_57, AFTER_12, AFTER_20}, id="success-inverted"),
     pytest.param(BatteryJudgingTheRoundedLevel, {AFTER_19}, id="rounded-before-judged"),
+    pytest.param(BatteryTruncatingTheLevel, {"after a reading of 19.6%: the message contains '20%'"},
+                 id="truncated"),
     pytest.param(BatteryThatRaises, {"callbacks raised no errors"}, id="callback-raises"),
 ]
 
@@ -157,9 +172,9 @@ BATTERY_WRONG = [
 def test_battery_checker_accepts_the_reference_and_every_criterion_has_a_wrong_solution(rt):
     report = check_battery_server(BatteryMonitor, rt)
     assert report.passed, report.summary()
+    assert_reference_criteria("check_battery_server", report)
     names = {c.name for c in report.criteria}
-    assert {AFTER_57, AFTER_12, AFTER_20} <= names
-    assert names <= _covered(BATTERY_WRONG)
+    assert {AFTER_57, AFTER_19, AFTER_12, AFTER_20} <= names
 
 
 @pytest.mark.parametrize("wrong, failing", BATTERY_WRONG)
@@ -291,7 +306,7 @@ RELAY_WRONG = [
 def test_relay_checker_accepts_the_reference_and_every_criterion_has_a_wrong_solution(rt):
     report = check_relay_server(SumRelay, rt)
     assert report.passed, report.summary()
-    assert {c.name for c in report.criteria} <= _covered(RELAY_WRONG)
+    assert_reference_criteria("check_relay_server", report)
 
 
 @pytest.mark.parametrize("wrong, failing", RELAY_WRONG)
@@ -310,3 +325,13 @@ def test_relay_checker_reports_the_deadlock_in_words_as_soon_as_the_callback_blo
     assert "waits in client.call() on the only thread that could deliver its answer" in failed[0].detail
     assert not any("call_async" in c.hint or "async def" in c.hint for c in report.criteria), (
         "hints point to the text; they do not write the fix")
+
+
+COVERED = {"check_battery_server": _covered(BATTERY_WRONG), "check_relay_server": _covered(RELAY_WRONG)}
+ONLY_WHEN_FAILING = {
+    "check_battery_server": {"the node can be created"} | {
+        f"after a reading of {level:g}%: the message contains '{round(level)}%'"
+        for level, _healthy in BATTERY_CASES},
+    "check_relay_server": {"the node can be created", "its callbacks raised no exceptions",
+                           "it answers 2 + 3 without a deadlock"},
+}

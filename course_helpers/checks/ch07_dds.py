@@ -8,7 +8,13 @@ on any machine), checks that the robot's domain is not the class's (this kernel'
 the domain the class shares: participants of different domains never discover each other), and then
 that its team hears it: a listener process in that domain receives its status. It also checks that
 the kernel is left as it was: the environment its children inherit, and rclpy's signal handlers
-switched off.
+switched off. For that last one the checker calls ``private_context`` with ``rclpy.init`` choosing
+the signal handlers as rclpy itself does
+(:func:`~course_helpers.notebook.interrupts.rclpys_own_signal_default`): a course kernel's
+``rclpy.init`` installs none unless asked, so without this the criterion could not fail there,
+whatever the student wrote. What is judged is the student's code: a function that initialises
+rclpy's default context gets rclpy's handlers, one that initialises a context of its own gets none,
+unless it asks for them.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
+from rclpy.utilities import get_default_context, try_shutdown
 
 from course_helpers.chapters.ch07_dds import ReportingListener, heard_lines
 from course_helpers.checks import CheckReport
@@ -27,6 +34,7 @@ from course_helpers.core.domains import reserve_spare_domain
 from course_helpers.core.executors import SpinThread
 from course_helpers.core.sim_clock import SimClock
 from course_helpers.core.waiting import poll_until
+from course_helpers.notebook.interrupts import rclpys_own_signal_default
 
 ROBOT_NAME = "private_robot"
 STATUS_TOPIC = "/robot_status"
@@ -66,7 +74,8 @@ def check_private_robot(node_class, make_context, rt=None) -> CheckReport:
 
     Returns:
         A :class:`CheckReport`. It passes when the function leaves ``os.environ`` and rclpy's
-        signal handlers as they were and returns an initialised context in the given domain; the
+        signal handlers as they were (called with rclpy's own choice of handlers, as in a plain
+        Python program) and returns an initialised context in the given domain; the
         node, built in that context, is named ``private_robot`` and publishes String on
         ``/robot_status``; a listener process in that domain hears it; and the kernel's domain
         never lists the node or its topic.
@@ -78,8 +87,9 @@ def check_private_robot(node_class, make_context, rt=None) -> CheckReport:
     spare = reserve_spare_domain()
     environment = _ros_environment()
     handlers = get_current_signal_handlers_options()
-    context = report.run("private_context(domain_id) runs", lambda: make_context(spare),
-                         hint="Read the error; private_context receives the domain number as an int.")
+    with rclpys_own_signal_default():  # what the function does outside a course kernel
+        context = report.run("private_context(domain_id) runs", lambda: make_context(spare),
+                             hint="Read the error; private_context receives the domain number as an int.")
     _check_kernel_kept(report, environment, handlers)
     if context is None:
         return report
@@ -88,7 +98,9 @@ def check_private_robot(node_class, make_context, rt=None) -> CheckReport:
         if _check_context(report, rt, context, spare):
             _check_robot(report, rt, node_class, context, spare)
     finally:
-        if ours and context.ok():
+        if ours and context is get_default_context():
+            try_shutdown()  # rclpy's default context: a new one replaces it, so rclpy.init() works again
+        elif ours and context.ok():
             context.try_shutdown()
     return report
 
@@ -105,7 +117,8 @@ def _check_kernel_kept(report: CheckReport, environment: dict[str, str], handler
     report.add("rclpy's signal handlers stay off", not installed,
                "rclpy's handlers were installed (the checker removed them again)" if installed else "",
                hint="Chapter 00, section 1: why the course's contexts run without rclpy's signal handler. "
-                    "Compare help(rclpy.init) with help(Context.init).")
+                    "The checker calls private_context with rclpy.init choosing the handlers as rclpy "
+                    "does outside this course: compare help(rclpy.init) with help(Context.init).")
 
 
 def _check_context(report: CheckReport, rt, context, domain: int) -> bool:

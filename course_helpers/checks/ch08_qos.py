@@ -3,7 +3,9 @@
 * :func:`check_channel_qos` runs the student's profile for each channel live: a camera driver in
   another process feeding a slow consumer, a lidar consumer fed by a sensor-data driver and one that
   starts late, robot_state_publisher's reliable subscription, a controller started after an e-stop.
-* :func:`check_mismatched_subscriber` runs the student's node against a best-effort publisher.
+* :func:`check_mismatched_subscriber` runs the student's node against a best-effort publisher, then
+  again as a deployer who overrides its reliability through a parameter, so that it must name the
+  policy of the incompatible-QoS event it meets (the diagnosis the exercise asks the node to make).
 * the deadline watchdog (08.3) and the heartbeat (08.4), which DDS times on the wall clock, are
   checked in :mod:`course_helpers.checks.ch08_qos_events`.
 
@@ -37,6 +39,10 @@ CHANNELS = ("camera", "lidar", "joint_states", "estop")
 MAX_FRAME_AGE_S = 0.25
 PROBE_COMMANDS = 6  # the sentinel: the checker's probe hears this many commands (3 or more reach the node)
 PAIR_HANG_S = 30.0  # bounds a hang only: a pair that matches exchanges messages in milliseconds
+# exercise 08.2's deployer: asks the listener's subscription for reliable delivery (section 10's overrides)
+OVERRIDE_PARAMETER = "qos_overrides./robot_cmd.subscription.reliability"
+OVERRIDE = f"a deployer can override its reliability ({OVERRIDE_PARAMETER})"
+DIAGNOSIS = "it keeps the policy its incompatible-QoS event names in self.incompatible"
 
 
 
@@ -248,11 +254,94 @@ def check_mismatched_subscriber(node_class, rt=None) -> CheckReport:
             report.add("they are the controller's commands", words <= {"forward", "backward", "stop"},
                        f"got {sorted(words)[:3]}",
                        hint="Look at what the callback keeps: the controller sends command words.")
+        rt.remove(node)
+        node = None
+        if wrong:
+            for name in (OVERRIDE, DIAGNOSIS):
+                report.add(name, False, "not tried: its QoS must match the controller's first",
+                           hint="Fix the QoS criterion above first.")
+        else:
+            _check_diagnosis(rt, report, node_class)
     finally:
         if node is not None:
             rt.remove(node)
         rt.stop_child("robot_controller")
     return report
+
+
+def _check_diagnosis(rt, report, node_class) -> None:
+    """The listener again, as a deployer who asks for reliable delivery runs it (a parameter override,
+    section 10): the controller cannot serve that, and the node must keep the policy its
+    incompatible-QoS event names. No data flows, so "nothing kept" is judged with a sentinel."""
+    from rclpy.parameter import Parameter
+
+    override = Parameter(OVERRIDE_PARAMETER, value="reliable")
+    node = report.run(OVERRIDE, lambda: rt.add(node_class, parameter_overrides=[override], console=False),
+                      hint="Keep the starting code's constructor: it hands parameter_overrides on to Node "
+                           "(section 10).")
+    if node is None:
+        report.add(DIAGNOSIS, False, "not tried: the node must start with the override first",
+                   hint="Fix the criterion above first.")
+        return
+    try:
+        subs = [s for s in node.subscriptions if s.topic_name == "/robot_cmd"]
+        overridden = bool(subs) and subs[0].qos_profile.reliability == QoSReliabilityPolicy.RELIABLE
+        if not report.add(OVERRIDE, overridden, "" if overridden else "the parameter did not change the "
+                          "subscription's reliability",
+                          hint="Keep the starting code's qos_overriding_options on the subscription "
+                               "(section 10)."):
+            report.add(DIAGNOSIS, False, "not tried: the override must reach the subscription first",
+                       hint="Fix the criterion above first.")
+            return
+        named = _incompatibility_a_probe_sees(rt, subs[0].qos_profile)
+        kept = getattr(node, "incompatible", None)
+        if not isinstance(kept, list):
+            report.add(DIAGNOSIS, False, "the node has no list self.incompatible",
+                       hint="Keep self.incompatible, the list of the starting code.")
+            return
+        names = sorted({_policy_kind_name(k) for k in kept})
+        report.add(DIAGNOSIS, named in names,
+                   f"the event named {named}; self.incompatible holds {', '.join(names) or 'nothing'}",
+                   hint="Section 5 lists the event callbacks a subscription takes; the status an "
+                        "incompatible-QoS callback gets says which policy failed (section 8).")
+    finally:
+        rt.remove(node)
+
+
+def _incompatibility_a_probe_sees(rt, qos: QoSProfile) -> str:
+    """The policy an incompatible-QoS event names for a probe subscription of the checker's that asks
+    for ``qos`` (the student's overridden profile), created after the student's: a sentinel. This
+    process's participant knows the controller's writer already (it heard its commands), and a new
+    reader is paired with the writers it knows while it is created (Fast DDS's EDP), so the student's
+    event was ready before the probe's. Once the probe's callback ran, one more round of the
+    runtime's single-threaded executor has run the student's too. ``PAIR_HANG_S`` bounds a hang only."""
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from std_msgs.msg import String
+
+    named: list[str] = []
+    probe = rt.add(Node, "robot_cmd_diagnosis_probe", console=False)
+    try:
+        probe.create_subscription(
+            String, "/robot_cmd", lambda _msg: None, qos,
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=lambda status: named.append(_policy_kind_name(status.last_policy_kind))))
+        wait_until(lambda: named, PAIR_HANG_S, "the checker's own incompatible-QoS event")
+        rt.settle_callbacks()
+        return named[0]
+    finally:
+        rt.remove(probe)
+
+
+def _policy_kind_name(value) -> str:
+    """'RELIABILITY' for QoSPolicyKind.RELIABILITY, its number, or a text naming it in any case."""
+    from rclpy.qos import QoSPolicyKind
+
+    if isinstance(value, str):
+        return value.rsplit(".", 1)[-1].strip().upper()
+    try:
+        return QoSPolicyKind(int(value)).name
+    except (TypeError, ValueError):
+        return type(value).__name__
 
 
 def _commands_heard(rt, node) -> list:

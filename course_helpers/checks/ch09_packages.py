@@ -5,6 +5,12 @@ text), writes them into a fresh colcon workspace in a temporary directory, runs
 the real ``colcon build``, finds the console script the way ``ros2 run`` does,
 starts it as its own process, and checks that its node joins the graph and
 publishes. The workspace and the process are removed afterwards.
+
+The node runs where only the ROS packages its package.xml declares (and theirs) are installed, as
+on a robot set up with ``rosdep install`` (:mod:`course_helpers.chapters.ch09_packages.provisioned`):
+a dependency the manifest forgot is not there, and the node cannot start. Only if it does not start
+there does the checker run it again with every ROS package of this machine; if it starts then, the
+manifest is what is missing (the two runs differ in nothing else).
 """
 
 from __future__ import annotations
@@ -29,24 +35,24 @@ EXECUTABLE = "heartbeat"
 NODE = "/heartbeat"
 TOPIC = "/heartbeat"
 MESSAGE_TYPE = "std_msgs/msg/String"
-DEPENDENCIES = ("rclpy", "std_msgs")
+DEPENDS = "it runs where only the ROS packages its package.xml declares (and theirs) are installed"
+LABEL = "checked_package"
 
 
 def check_package(files: dict, package: str = PACKAGE, executable: str = EXECUTABLE,
-                  node: str = NODE, topic: str = TOPIC, msg_type: str = MESSAGE_TYPE,
-                  dependencies: tuple[str, ...] = DEPENDENCIES, rt=None) -> CheckReport:
+                  node: str = NODE, topic: str = TOPIC, msg_type: str = MESSAGE_TYPE, rt=None) -> CheckReport:
     """Build ``files`` as package ``package`` and run ``ros2 run package executable``.
 
     Args:
         files: the package's files, relative path -> text.
-        package, executable, node, topic, msg_type, dependencies: what the exercise asks for.
+        package, executable, node, topic, msg_type: what the exercise asks for.
         rt: the runtime whose graph is watched (default: this kernel's).
 
     Returns:
         A :class:`CheckReport`. It passes when the package builds as an ament_python
         package, the executable is installed where ``ros2 run`` looks, its process shows node
-        ``node`` in the graph, messages of ``msg_type`` arrive on ``topic``, and Ctrl+C
-        stops it cleanly.
+        ``node`` in the graph where only the ROS packages its package.xml declares are
+        installed, messages of ``msg_type`` arrive on ``topic``, and Ctrl+C stops it cleanly.
     """
     from course_helpers.core.runtime import get_runtime
 
@@ -56,7 +62,7 @@ def check_package(files: dict, package: str = PACKAGE, executable: str = EXECUTA
         report.add("the package is a dict of files", False, f"got {type(files).__name__}",
                    "Write a dict: {'package.xml': '...', 'setup.py': '...', ...}.")
         return report
-    if not _static_checks(report, files, package, executable, dependencies):
+    if not _static_checks(report, files, package):
         return report
 
     with Workspace("checker_ws") as ws:
@@ -95,8 +101,7 @@ def check_package(files: dict, package: str = PACKAGE, executable: str = EXECUTA
     return report
 
 
-def _static_checks(report: CheckReport, files: dict, package: str, executable: str,
-                   dependencies: tuple[str, ...]) -> bool:
+def _static_checks(report: CheckReport, files: dict, package: str) -> bool:
     """Check the file list and package.xml before building; False stops the checker."""
     needed = ["package.xml", "setup.py", "setup.cfg", f"resource/{package}", f"{package}/__init__.py"]
     missing = [name for name in needed if name not in files]
@@ -124,16 +129,11 @@ def _static_checks(report: CheckReport, files: dict, package: str, executable: s
     report.add(f"package.xml names {package} and declares the ament_python build type", right,
                f"name {manifest['name'] or '(none)'}, build type {manifest['build_type'] or '(none)'}",
                f"Use <name>{package}</name> and <export><build_type>ament_python</build_type></export>.")
-    lacking = [d for d in dependencies if d not in manifest["depends"]]
-    report.add(f"package.xml declares what the node imports ({', '.join(dependencies)})", not lacking,
-               f"missing: {', '.join(lacking)}" if lacking else "",
-               "Add <exec_depend>rclpy</exec_depend> and one for each message package you import.")
     return True
 
 
 def _run_and_listen(report: CheckReport, rt, ws: Workspace, package: str, executable: str,
                     node: str, topic: str, msg_type: str) -> None:
-    label = "checked_package"
     if node in rt.graph_nodes():  # it must be the packaged process that shows the node
         report.add(f"no other {node} runs before the package starts", False,
                    f"{node} is already in the graph",
@@ -141,38 +141,66 @@ def _run_and_listen(report: CheckReport, rt, ws: Workspace, package: str, execut
                    "process that runs it, then check again.")
         return
     try:
-        child = ws.run(package, executable, label=label)
+        provisioned = ws.provision(package)
     except CourseError as exc:
         report.add("the executable starts", False, str(exc).splitlines()[0])
         return
     try:
-        try:
-            wait_for_process_node(child, node)
-            appeared, detail = True, ""
-        except (CourseError, WaitTimeout) as exc:  # it exited, or it runs without the node
-            appeared = False
-            tail = [line for line in child.log().splitlines() if line.strip()][-3:]
-            detail = "; ".join(tail) if tail else str(exc).splitlines()[0]
-        if not report.add(f"its process shows node {node} in the graph", appeared, detail,
+        child, appeared, detail = _start(report, ws, package, executable, node, provisioned)
+        if child is None:
+            return
+        everything = None
+        if not appeared and not child.alive:  # it ended (at an import?): again, with every ROS package
+            child, everything, detail_everywhere = _start(report, ws, package, executable, node, None)
+            if child is None:
+                return
+        if not report.add(f"its process shows node {node} in the graph", appeared or bool(everything),
+                          detail if everything is None else detail_everywhere,
                           f"main() must call rclpy.init(), create the node (super().__init__("
                           f"'{node.strip('/')}')) and rclpy.spin() it."):
             return
-        try:
-            messages = rt.wait_for_messages(topic, msg_type, count=2, timeout=5.0)
-            heard, detail = True, f"{len(messages)} messages of {type(messages[0]).__name__}"
-        except Exception as exc:  # WaitTimeout or a wrong type name
-            heard, detail = False, str(exc).splitlines()[0]
-        report.add(f"messages arrive on {topic} from the packaged node", heard, detail,
-                   f"Publish {msg_type} on '{topic.strip('/')}' from a timer.")
-        child.request_stop()  # SIGINT: what Ctrl+C in the terminal of `ros2 run` sends
-        try:
-            code = child.wait_for_exit(CTRL_C_EXIT_S, "it to leave after Ctrl+C")
-        except WaitTimeout:
-            code = None
-        report.add("Ctrl+C stops it cleanly (exit code 0)", code == 0,
-                   f"still running after {CTRL_C_EXIT_S:g} s" if code is None else f"exit code {code}",
-                   "Catch KeyboardInterrupt (and rclpy.executors.ExternalShutdownException) around "
-                   "rclpy.spin(), then destroy the node and call rclpy.try_shutdown().")
+        report.add(DEPENDS, appeared,
+                   f"installed there: {provisioned.describe()}" if appeared else
+                   f"where only {provisioned.describe()} are installed, it ended before its node appeared "
+                   f"({detail.rsplit('; ', 1)[-1].strip()}); with every ROS package of this machine it runs",
+                   "rosdep installs what package.xml names, and nothing else: declare every ROS package "
+                   "your node imports (<depend> or <exec_depend>).")
+        _listen_and_stop(report, rt, child, topic, msg_type)
     finally:
-        stop_process(label)
+        stop_process(LABEL)
 
+
+def _start(report: CheckReport, ws: Workspace, package: str, executable: str, node: str, provisioned):
+    """Run the executable (where ``provisioned`` says, or with everything when None): (child, whether
+    ``node`` appeared, what its process said last if not), or (None, False, '') with the criterion
+    "the executable starts" failed."""
+    try:
+        child = ws.run(package, executable, label=LABEL, provisioned=provisioned)
+    except CourseError as exc:
+        report.add("the executable starts", False, str(exc).splitlines()[0])
+        return None, False, ""
+    try:
+        wait_for_process_node(child, node)
+        return child, True, ""
+    except (CourseError, WaitTimeout) as exc:  # it exited, or it runs without the node
+        tail = [line for line in child.log().splitlines() if line.strip()][-3:]
+        return child, False, "; ".join(tail) if tail else str(exc).splitlines()[0]
+
+
+def _listen_and_stop(report: CheckReport, rt, child, topic: str, msg_type: str) -> None:
+    try:
+        messages = rt.wait_for_messages(topic, msg_type, count=2, timeout=5.0)
+        heard, detail = True, f"{len(messages)} messages of {type(messages[0]).__name__}"
+    except Exception as exc:  # WaitTimeout or a wrong type name
+        heard, detail = False, str(exc).splitlines()[0]
+    report.add(f"messages arrive on {topic} from the packaged node", heard, detail,
+               f"Publish {msg_type} on '{topic.strip('/')}' from a timer.")
+    child.request_stop()  # SIGINT: what Ctrl+C in the terminal of `ros2 run` sends
+    try:
+        code = child.wait_for_exit(CTRL_C_EXIT_S, "it to leave after Ctrl+C")
+    except WaitTimeout:
+        code = None
+    report.add("Ctrl+C stops it cleanly (exit code 0)", code == 0,
+               f"still running after {CTRL_C_EXIT_S:g} s" if code is None else f"exit code {code}",
+               "Catch KeyboardInterrupt (and rclpy.executors.ExternalShutdownException) around "
+               "rclpy.spin(), then destroy the node and call rclpy.try_shutdown().")

@@ -25,10 +25,15 @@ presses Interrupt (SIGINT). :func:`install` sets up three things, once per kerne
   every byte.
 * **One line.** A ``KeyboardInterrupt`` shows as one line naming the line of the cell where it
   stopped, not a traceback through rclpy's executor.
+
+A checker that must see what a student's code does *outside* a course kernel (chapter 07: does
+``private_context`` install rclpy's handlers?) runs it inside :func:`rclpys_own_signal_default`,
+where ``rclpy.init()`` without ``signal_handler_options=`` chooses as rclpy itself does.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import gc
 import linecache
@@ -43,6 +48,7 @@ from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_opti
 from rclpy.utilities import get_default_context
 
 _installed: list[bool] = []
+_rclpys_default: list[bool] = []  # not empty while rclpys_own_signal_default() is open
 
 
 def install(shell, runtime) -> None:
@@ -66,7 +72,7 @@ def _course_init(textbook_init):
 
     @functools.wraps(textbook_init)
     def init(*, context=None, signal_handler_options=None, **kwargs):
-        if signal_handler_options is None:
+        if signal_handler_options is None and not _rclpys_default:
             signal_handler_options = SignalHandlerOptions.NO  # rclpy's would shut every context down
         if context is None and get_default_context().ok():
             _end_default_context()
@@ -76,6 +82,21 @@ def _course_init(textbook_init):
 
     init.course_kernel = True
     return init
+
+
+@contextlib.contextmanager
+def rclpys_own_signal_default():
+    """Within the block, ``rclpy.init()`` called without ``signal_handler_options=`` lets rclpy choose,
+    as in a plain Python program: rclpy installs its SIGINT and SIGTERM handlers when it initialises
+    its default context, and none for a context of the caller's own (rclpy 7.1's ``rclpy.init``).
+    The course's wrapper still ends a running default context first. Outside a course kernel
+    ``rclpy.init`` is rclpy's own anyway, and the block changes nothing. Not for threads: the
+    setting is the process's while the block is open."""
+    _rclpys_default.append(True)
+    try:
+        yield
+    finally:
+        _rclpys_default.pop()
 
 
 def _instances(cls) -> list:

@@ -11,8 +11,10 @@ from rclpy.qos import (
     QoSLivelinessPolicy,
     QoSProfile,
     QoSReliabilityPolicy,
+    qos_policy_name_from_kind,
     qos_profile_sensor_data,
 )
+from rclpy.qos_overriding_options import QoSOverridingOptions
 from std_msgs.msg import Bool, String
 
 
@@ -35,17 +37,28 @@ def channel_qos() -> dict:
 
 
 class RobotCmdListener(Node):
-    """Exercise 08.2: asks for no more than the best-effort, volatile publisher offers."""
+    """Exercise 08.2: asks for no more than the best-effort, volatile publisher offers, and names the
+    policy of every incompatible-QoS event (a deployer may override its reliability by parameter)."""
 
-    def __init__(self):
-        super().__init__("robot_listener")
+    def __init__(self, parameter_overrides=()):
+        super().__init__("robot_listener", parameter_overrides=list(parameter_overrides))
         self.received = []
+        self.incompatible = []  # the policy each incompatible-QoS event names, e.g. 'RELIABILITY'
         qos = QoSProfile(depth=10, reliability=QoSReliabilityPolicy.BEST_EFFORT,
                          durability=QoSDurabilityPolicy.VOLATILE)
-        self.subscription = self.create_subscription(String, "/robot_cmd", self.on_cmd, qos)
+        self.subscription = self.create_subscription(
+            String, "/robot_cmd", self.on_cmd, qos,
+            event_callbacks=SubscriptionEventCallbacks(incompatible_qos=self.on_incompatible_qos),
+            qos_overriding_options=QoSOverridingOptions.with_default_policies())
 
     def on_cmd(self, msg: String) -> None:
         self.received.append(msg.data)
+
+    def on_incompatible_qos(self, status) -> None:
+        policy = qos_policy_name_from_kind(status.last_policy_kind)
+        self.incompatible.append(policy)
+        self.get_logger().warning(f"a publisher of /robot_cmd cannot give what this subscription asks for: "
+                                  f"{policy} (no command will arrive from it)")
 
 
 class OdomWatchdog(Node):

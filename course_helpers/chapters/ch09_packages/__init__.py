@@ -6,6 +6,7 @@
 * ``colcon``: ``colcon build`` and :class:`ColconBuild`;
 * ``environment``: what ``source install/setup.bash`` does, from colcon's ``.dsv`` hooks;
 * ``executables``: find and run a package's executables as ``ros2 run`` does;
+* ``provisioned``: a package run where only the ROS packages its package.xml declares are installed;
 * ``interfaces``: create, build and load new interface packages; :class:`MessagePublisher`;
 * ``progress``: :func:`build_progress`, a live indicator for builds that leaves a record of the steps.
 """

@@ -43,6 +43,7 @@ from course_helpers.chapters.ch09_packages.package_files import (
     path_inside,
     write_package_files,
 )
+from course_helpers.chapters.ch09_packages.provisioned import Provisioned, provision
 from course_helpers.core.errors import CourseError
 from course_helpers.core.processes import ChildProcess
 from course_helpers.core.spawning import CHILD_HANG_S
@@ -162,20 +163,30 @@ class Workspace:
         index of ``env`` (default: the workspace's environment)."""
         return find_executable(package, executable, self.environment() if env is None else env)
 
+    def provision(self, package: str) -> Provisioned:
+        """Set up, inside the workspace, a Python where only the ROS packages that ``src/PACKAGE``'s
+        package.xml declares (and theirs) are installed, as ``rosdep install`` would set up a robot
+        for it (:mod:`.provisioned`); pass the result to :meth:`run`."""
+        return provision(package, self.src / package / "package.xml", self.install_base, self.environment(),
+                         self.root / "provisioned_site")
+
     def run(self, package: str, executable: str, args: list[str] | tuple[str, ...] = (),
             label: str | None = None, wait_for: str | None = None,
-            timeout: float = CHILD_HANG_S) -> ChildProcess:
+            timeout: float = CHILD_HANG_S, provisioned: Provisioned | None = None) -> ChildProcess:
         """Start ``EXECUTABLE`` of ``PACKAGE`` as its own process, like ``ros2 run PACKAGE EXECUTABLE``.
 
-        The process gets the workspace's environment (and this kernel's ROS domain). A
-        process with the same ``label`` (default: the executable's name) is stopped first.
-        ``wait_for`` names a node (``'/battery_monitor'``) to wait for in the ROS graph.
-        Returns the :class:`ChildProcess`.
+        The process gets the workspace's environment (and this kernel's ROS domain), or, with
+        ``provisioned`` (from :meth:`provision`), runs where only the ROS packages its package.xml
+        declares are installed. A process with the same ``label`` (default: the executable's name)
+        is stopped first. ``wait_for`` names a node (``'/battery_monitor'``) to wait for in the ROS
+        graph. Returns the :class:`ChildProcess`.
         """
         env = self.environment()
         path = self.find_executable(package, executable, env)
         label = label or executable
-        child = start_process(label, [str(path), *args], env, self.root)
+        command = [str(path)] if provisioned is None else provisioned.command(path)
+        child = start_process(label, [*command, *args], env if provisioned is None else provisioned.env,
+                              self.root)
         if label not in self.process_labels:
             self.process_labels.append(label)
         if wait_for:
