@@ -26,6 +26,7 @@ from course_helpers.checks.ch08_qos import DIAGNOSIS, OVERRIDE, check_channel_qo
 from course_helpers.checks.ch08_qos_events import check_deadline_watchdog, check_heartbeat
 from course_helpers.notebook.solution import solution_source
 from course_helpers.solutions import ch08_qos as reference
+from course_helpers.solutions import ch08_qos_events as events_reference
 
 from .criteria_registry import assert_reference_criteria
 
@@ -349,7 +350,7 @@ WATCHDOG_TIMED_WRONG = {  # the same, for the two that get as far as the driver'
 
 
 def test_watchdog_checker_accepts_the_reference_solution(rt):
-    report = check_deadline_watchdog(reference.OdomWatchdog, rt)
+    report = check_deadline_watchdog(events_reference.OdomWatchdog, rt)
     assert report.passed, report.summary()
     assert_reference_criteria("check_deadline_watchdog", report)
     assert rt.nodes() == [] and rt.children() == {}
@@ -369,15 +370,15 @@ def test_watchdog_checker_rejects_a_watchdog_that_never_alarms_or_always_does(rt
 
 
 # ---------------------------------------------------------------- 08.4: heartbeat and monitor
-BEAT = reference.HEARTBEAT_QOS
+BEAT = events_reference.HEARTBEAT_QOS
 
 
-class NamedHeartbeat(reference.SwitchableHeartbeat):
+class NamedHeartbeat(events_reference.SwitchableHeartbeat):
     def __init__(self, name):
         super().__init__()
 
 
-class NamedMonitor(reference.HeartbeatMonitor):
+class NamedMonitor(events_reference.HeartbeatMonitor):
     def __init__(self, name):
         super().__init__()
 
@@ -390,7 +391,7 @@ class BoolHeartbeat(Node):
         self.publisher = self.create_publisher(Bool, "heartbeat", BEAT)
 
 
-class MisspeltMonitor(reference.HeartbeatMonitor):
+class MisspeltMonitor(events_reference.HeartbeatMonitor):
     """Watches /heartbeats instead of /heartbeat."""
 
     def __init__(self):
@@ -409,7 +410,7 @@ class AutomaticHeartbeat(Node):
         self.publisher = self.create_publisher(String, "heartbeat", qos)
 
 
-class ImpatientMonitor(reference.HeartbeatMonitor):
+class ImpatientMonitor(events_reference.HeartbeatMonitor):
     """Requests a 0.2 s lease, shorter than the 0.5 s the heartbeat promises."""
 
     def __init__(self):
@@ -422,7 +423,7 @@ class ImpatientMonitor(reference.HeartbeatMonitor):
             event_callbacks=SubscriptionEventCallbacks(liveliness=self.on_liveliness))
 
 
-class DeafHeartbeat(reference.SwitchableHeartbeat):
+class DeafHeartbeat(events_reference.SwitchableHeartbeat):
     """Beats, but listens to no command."""
 
     def __init__(self):
@@ -430,7 +431,7 @@ class DeafHeartbeat(reference.SwitchableHeartbeat):
         self.destroy_subscription(self.enable)
 
 
-class MuteMonitor(reference.HeartbeatMonitor):
+class MuteMonitor(events_reference.HeartbeatMonitor):
     """Watches, but has no status publisher (it only logs)."""
 
     def __init__(self):
@@ -438,7 +439,7 @@ class MuteMonitor(reference.HeartbeatMonitor):
         self.destroy_publisher(self.status)
 
 
-class NeverBeatingHeartbeat(reference.SwitchableHeartbeat):
+class NeverBeatingHeartbeat(events_reference.SwitchableHeartbeat):
     """Its timer never asserts: it starts disabled and waits for a True."""
 
     def __init__(self):
@@ -446,7 +447,7 @@ class NeverBeatingHeartbeat(reference.SwitchableHeartbeat):
         self.beating = False
 
 
-class AlarmistMonitor(reference.HeartbeatMonitor):
+class AlarmistMonitor(events_reference.HeartbeatMonitor):
     """Says 'lost' on every liveliness event, the first 'alive' included."""
 
     def on_liveliness(self, status) -> None:
@@ -455,7 +456,7 @@ class AlarmistMonitor(reference.HeartbeatMonitor):
             self.status.publish(String(data="alive"))
 
 
-class SeldomHeartbeat(reference.SwitchableHeartbeat):
+class SeldomHeartbeat(events_reference.SwitchableHeartbeat):
     """Asserts every 2 s, four times the 0.5 s lease it promises."""
 
     def __init__(self):
@@ -464,7 +465,7 @@ class SeldomHeartbeat(reference.SwitchableHeartbeat):
         self.timer = self.create_timer(2.0, self.beat)  # period in seconds
 
 
-class LostOnlyMonitor(reference.HeartbeatMonitor):
+class LostOnlyMonitor(events_reference.HeartbeatMonitor):
     """Reports losses, never a return."""
 
     def on_liveliness(self, status) -> None:
@@ -472,7 +473,7 @@ class LostOnlyMonitor(reference.HeartbeatMonitor):
             self.status.publish(String(data="lost"))
 
 
-class StubbornHeartbeat(reference.SwitchableHeartbeat):
+class StubbornHeartbeat(events_reference.SwitchableHeartbeat):
     """Ignores the command to stop."""
 
     def on_enable(self, msg) -> None:
@@ -488,7 +489,7 @@ class DeafMonitor(Node):
         self.subscription = self.create_subscription(String, "heartbeat", lambda _m: None, BEAT)
 
 
-class OneWayHeartbeat(reference.SwitchableHeartbeat):
+class OneWayHeartbeat(events_reference.SwitchableHeartbeat):
     """Stops on False, and never starts again."""
 
     def on_enable(self, msg) -> None:
@@ -515,7 +516,7 @@ HEARTBEAT_TIMED_WRONG = {  # the same for pairs that get as far as the timed sce
     (StubbornHeartbeat, DeafMonitor): ["heartbeat: lost within 2 s of a False on /heartbeat/enable",
                                        "monitor: publishes 'lost' within 2 s after the heartbeat stopped",
                                        "monitor: publishes 'alive' when the heartbeat is back"],
-    (OneWayHeartbeat, reference.HeartbeatMonitor): ["heartbeat: alive again after a True"],
+    (OneWayHeartbeat, events_reference.HeartbeatMonitor): ["heartbeat: alive again after a True"],
 }
 
 
@@ -526,7 +527,7 @@ def _fails_exactly_its_criteria(rt, heartbeat, monitor, table) -> None:
 
 
 def test_heartbeat_checker_accepts_the_reference_solution(rt):
-    report = check_heartbeat(reference.SwitchableHeartbeat, reference.HeartbeatMonitor, rt)
+    report = check_heartbeat(events_reference.SwitchableHeartbeat, events_reference.HeartbeatMonitor, rt)
     assert report.passed, report.summary()
     assert_reference_criteria("check_heartbeat", report)
     assert rt.nodes() == [] and rt.children() == {}
@@ -573,12 +574,13 @@ def test_heartbeat_checker_rejects_a_heartbeat_that_ignores_the_command_and_a_de
 
 
 def test_heartbeat_checker_rejects_a_heartbeat_that_never_comes_back(rt):
-    _fails_exactly_its_criteria(rt, OneWayHeartbeat, reference.HeartbeatMonitor, HEARTBEAT_TIMED_WRONG)
+    _fails_exactly_its_criteria(rt, OneWayHeartbeat, events_reference.HeartbeatMonitor, HEARTBEAT_TIMED_WRONG)
 
 
 def test_the_solutions_are_offered_by_show_solution():
-    for name in ("RobotCmdListener", "OdomWatchdog", "SwitchableHeartbeat", "HeartbeatMonitor"):
-        assert f"class {name}(Node)" in solution_source("ch08_qos", name)
+    assert "class RobotCmdListener(Node)" in solution_source("ch08_qos", "RobotCmdListener")
+    for name in ("OdomWatchdog", "SwitchableHeartbeat", "HeartbeatMonitor"):
+        assert f"class {name}(Node)" in solution_source("ch08_qos_events", name)
     assert "def channel_qos()" in solution_source("ch08_qos", "channel_qos")
 
 

@@ -116,9 +116,10 @@ def test_the_graph_shows_the_foreign_endpoints_and_a_rerun_leaves_one_participan
     assert {bytes(i.endpoint_gid)[:2] for i in foreign()} == {b"\x01\x10"}  # vendor 01.10: Cyclone DDS
     assert {i.topic_type for i in foreign()} == {"std_msgs/msg/String"}
     snap = graph_snapshot(rt)
-    boxes = [n for n in snap.nodes if n.startswith("[Eclipse Cyclone DDS ")]
-    assert len(boxes) == 1, snap.nodes
-    assert snap.publishers("/graph_chatter") == boxes and snap.subscribers("/graph_chatter") == boxes
+    # one box holds both endpoints: this participant's (earlier tests' Cyclone participants may still be
+    # drawn, departed but within their lease, since Fast DDS 2.14 ignores Cyclone's goodbyes)
+    (box,) = snap.publishers("/graph_chatter")
+    assert box.startswith("[Eclipse Cyclone DDS ") and snap.subscribers("/graph_chatter") == [box], snap.nodes
 
     assert cyclone.cyclone_participants() == 1
     cyclone.cyclone_domain(rt)  # what running the cell again does: the old participant goes

@@ -290,11 +290,16 @@ def _busy_machine():
     cells = ch03_busy_cells()  # fails, naming the cell, if the sensor array's cut has moved
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     kernel = KernelSession(cwd=os.path.join(REPO, "notebooks"))
-    for code in cells:
-        _out, error = kernel.run(code, timeout=120)
-        assert error is None, f"chapter 03's cell failed: {error}\n{code}"
-    out, error = kernel.run("print(len(rt.children()))")
-    assert error is None and out.strip() == "3", out  # thermo_cold, thermo_hot, sensor_array
+    try:
+        for code in cells:
+            _out, error = kernel.run(code, timeout=120)
+            assert error is None, f"chapter 03's cell failed: {error}\n{code}"
+        out, error = kernel.run("print(len(rt.children()))")
+        assert error is None and out.strip() == "3", out  # thermo_cold, thermo_hot, sensor_array
+    except BaseException:  # nothing of a failed set-up may outlive it (the next tests count kernels)
+        hog.kill()
+        kernel.shutdown()
+        raise
     return hog, kernel
 
 

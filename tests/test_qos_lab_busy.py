@@ -27,19 +27,25 @@ pytestmark = pytest.mark.timing
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PRESET = "best-effort vs reliable under load"
 # Chapter 03's cells that start nodes: the thermometer and its monitor, two sensors in child
-# processes and a logger, a cmd_vel and an IMU publisher; then the start of the cell that runs the
-# ten-topic sensor array (a child at 100 Hz per topic) and its listener, which the cell later stops.
+# processes and a logger, a cmd_vel and an IMU publisher; then what its cell c50 starts inside the
+# measurement it repeats (the ten-topic sensor array, a child at 100 Hz per topic, and its listener),
+# left running here, as a student's kernel holds it while that cell runs.
 CH03_CELLS = ("c02", "c03", "c05", "c12", "c15")
-SENSOR_ARRAY = ("c50", "counted = ")  # the cell, and where to cut it (before it measures and stops)
+SENSOR_ARRAY = ("c50", "rt.spawn('sensor_array', make_sensor_array")  # the cell, and what it starts
+START_SENSOR_ARRAY = """
+from course_helpers.chapters.ch03_topics import ArrayListener, make_sensor_array, sensor_topics
+array = rt.spawn('sensor_array', make_sensor_array, {'count': 10, 'rate_hz': 100}, wait_for='/sensor_array')
+meter = rt.add(ArrayListener, sensor_topics(10))
+"""
 
 
 def ch03_busy_cells() -> list[str]:
-    """The code of chapter 03's cells above, the sensor array's cut before its measurement."""
+    """The code of chapter 03's cells above, then the sensor array and its listener as c50 starts them."""
     notebook = nbformat.read(os.path.join(REPO, "notebooks", "03_topics.ipynb"), as_version=4)
     sources = {cell.get("id"): cell.source for cell in notebook.cells}
-    cell, cut = SENSOR_ARRAY
-    assert cut in sources[cell], f"03's cell {cell} no longer has {cut!r}: update SENSOR_ARRAY"
-    return [sources[c] for c in CH03_CELLS] + [sources[cell].split(cut)[0]]
+    cell, starts = SENSOR_ARRAY
+    assert starts in sources[cell], f"03's cell {cell} no longer has {starts!r}: update SENSOR_ARRAY"
+    return [sources[c] for c in CH03_CELLS] + [START_SENSOR_ARRAY]
 
 
 @pytest.fixture
