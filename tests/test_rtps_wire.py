@@ -62,7 +62,7 @@ def test_every_lost_sample_of_a_reliable_run_comes_back_after_heartbeat_then_ack
         assert repair.seq in repair.acknack.numbers and not repair.acknack.dropped
         assert repair.heartbeat.kind == "HEARTBEAT" and not repair.heartbeat.dropped
         assert all(copy.dropped for copy in repair.lost) and not repair.resent.dropped
-        assert repair.no_sooner_than_the_writer_answers, repair.waited_s
+        assert repair.waited_s > 0, repair  # the times are printed, never bounded: see 08c
     counts = run.counts()
     assert counts["DATA"][0] == 400 + run.resent
     assert run.resent >= counts["DATA"][1]  # each dropped copy was followed by another

@@ -13,14 +13,17 @@ How Fast DDS 2.14 repairs a lost sample (``StatefulWriter``, ``StatefulReader``,
   (``WriterProxy::process_heartbeat``), ``heartbeatResponseDelay`` (5 ms) before it fires; the
   reader's other ACKNACK, the preemptive one sent before its first HEARTBEAT, names nothing;
 * the writer sends a sample again only once an ACKNACK has asked for it
-  (``ReaderProxy::requested_changes_set``), ``nackResponseDelay`` (5 ms) later
-  (``StatefulWriter::perform_nack_response``); a sample no longer in its history gets a GAP instead;
+  (``ReaderProxy::requested_changes_set``), when its nack-response timer fires
+  (``StatefulWriter::perform_nack_response``): ``nackResponseDelay`` (5 ms) after the ACKNACK that
+  armed it, which may be an earlier one (restarting an armed ``TimedEvent`` keeps its time), so a
+  repair can follow its own ACKNACK, and its loss, by less; a sample no longer in its history gets a
+  GAP instead;
 * a best-effort reader acknowledges nothing, and a best-effort writer sends nothing twice.
 
 So each repaired sample has, in this order: a HEARTBEAT that reached the reader, an ACKNACK naming
 the sample that reached the writer, and a copy of the sample that arrived (:class:`Repair`). A
 second HEARTBEAT may make the reader ask again while the copy is on its way, so the ACKNACK taken is
-the first after the last lost copy: the one that started the writer's ``nackResponseDelay``. The
+the first after the last lost copy. The
 HEARTBEAT's range need not reach the lost number: the reader also learns that a number is missing
 when a later sample arrives. How long a repair takes is mostly the wait for the next HEARTBEAT (the
 link's writers send one every ``HEARTBEAT_S``, and piggy-back one on data when their history is full
@@ -44,9 +47,6 @@ CAPTURE_LABEL = "qos_lab_capture"
 COUNTED = ("DATA", "HEARTBEAT", "ACKNACK", "GAP")
 HEARTBEAT_RESPONSE_DELAY_S = 0.005  # Fast DDS 2.14 ReaderTimes default (the link's profile keeps it)
 NACK_RESPONSE_DELAY_S = 0.005  # Fast DDS 2.14 WriterTimes default (the link's profile keeps it)
-# The capture stamps datagrams with the real-time clock, Fast DDS's timers run on the monotonic one:
-# a bound on a capture interval allows this much for the two clocks' difference (NTP slews by 0.05 %)
-CLOCKS_TOLERANCE_S = 0.0002
 
 
 def wire_unavailable_reason() -> str | None:
@@ -85,11 +85,6 @@ class Repair:
         """From the first lost copy to the copy that arrived (the capture's clock)."""
         return self.resent.time - self.lost[0].time
 
-    @property
-    def no_sooner_than_the_writer_answers(self) -> bool:
-        """True when the copy came at least ``nackResponseDelay`` after the first lost one: the reader can
-        ask only once the sample was sent, and the writer answers that much after the request."""
-        return self.waited_s >= NACK_RESPONSE_DELAY_S - CLOCKS_TOLERANCE_S
 
 
 @dataclass
