@@ -15,6 +15,8 @@ import traceback
 import uuid
 from html import escape as html_escape
 
+from course_helpers.core.callback_errors import RepeatCounter
+
 MAX_LINES = 200  # lines a console keeps; older lines scroll away
 FLUSH_PERIOD_S = 0.2  # how often consoles are refreshed in the browser
 
@@ -116,6 +118,7 @@ class ConsoleRouter:
         self._stop = threading.Event()
         self._flusher: threading.Thread | None = None
         self._streams = None
+        self._callback_errors = RepeatCounter()
 
     def start(self) -> None:
         """Wrap sys.stdout/sys.stderr and start refreshing consoles."""
@@ -178,12 +181,14 @@ class ConsoleRouter:
         return True
 
     def write_error(self, console: NodeConsole | None, where: str, exc: BaseException) -> None:
-        """Show a callback's exception in its console (or on stderr) without stopping ROS."""
-        text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
-        message = f"[callback error in {where}] {text}"
+        """Show a callback's exception in its console (and on the cell's stderr when the console is
+        hidden) without stopping ROS; a repeat of the same error is counted, not shown again."""
+        message = self._callback_errors.report(where, exc)  # the student's frames; repeats counted
+        if message is None:
+            return
         if console is not None:
             console.write(message)
-        else:
+        if console is None or console.display_id is None:  # no console on the page: the cell says it
             self._cell_stderr().write(message)
 
     def write_internal_error(self, where: str, exc: BaseException, log_path: str) -> None:
