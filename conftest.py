@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import statistics
 from collections import defaultdict
 from pathlib import Path
@@ -23,6 +24,13 @@ from pathlib import Path
 import pytest
 
 RECORD = Path(__file__).parent / "tests" / "durations.json"
+
+# A shell starts a background job (`make test &`, a CI step run with `&`) with SIGINT ignored; Python then
+# installs no KeyboardInterrupt handler, and every process started from it inherits the ignoring. The tests
+# that press Ctrl+C (on this process, or on a child such as a checker's student package) need what a
+# terminal gives, so it is restored here, once per test process; children then start with the default.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 REQUIRE_ALL_ENV = "COURSE_REQUIRE_ALL_TESTS"
 
 
