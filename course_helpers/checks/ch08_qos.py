@@ -2,7 +2,8 @@
 
 * :func:`check_channel_qos` runs the student's profile for each channel live: a camera driver in
   another process feeding a slow consumer, a lidar consumer fed by a sensor-data driver and one that
-  starts late, robot_state_publisher's reliable subscription, a controller started after an e-stop.
+  starts late, a joint state publisher for robot_state_publisher (whose ``SensorDataQoS`` subscription
+  any offer satisfies), a controller started after an e-stop.
 * :func:`check_mismatched_subscriber` runs the student's node against a best-effort publisher, then
   again as a deployer who overrides its reliability through a parameter, so that it must name the
   policy of the incompatible-QoS event it meets (the diagnosis the exercise asks the node to make).
@@ -183,8 +184,9 @@ def _recent_only(report, name: str, qos: QoSProfile) -> None:
 
 
 def _check_joint_states(rt, report, qos: QoSProfile) -> None:
-    # robot_state_publisher's sensor-data subscription requests the least of every policy: whatever a
-    # publisher offers connects, so this is shown live in the notebook, never judged here
+    # robot_state_publisher subscribes with rclcpp::SensorDataQoS() (best effort, volatile, depth 5;
+    # src/robot_state_publisher.cpp): it requests the least of every policy, so whatever a publisher
+    # offers connects, and connecting is no criterion. What the profile decides is judged.
     _no_old_samples(report, "joint_states: a node that starts later gets no old state", qos,
                     "Section 4 (durability): an old joint state puts the arm where it was, not where it is.")
     _recent_only(report, "joint_states: only recent states are queued (a depth of 10 at most)", qos)
