@@ -18,7 +18,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options
+from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
 from std_msgs.msg import Int32, String
 
 from course_helpers.checks.ch00_environment import environment_report, observe_environment
@@ -28,6 +28,15 @@ from course_helpers.solutions.ch07_dds import PrivateRobot, private_context
 
 from .conftest import run_python
 from .criteria_registry import assert_reference_criteria, failing, recorded_names_starting_with
+
+
+@pytest.fixture(autouse=True)
+def _rclpys_handlers_off():
+    """Each test starts as every cell of a course kernel does: without rclpy's signal handlers
+    (notebook/interrupts.install removes any a textbook rclpy.init() left). In a test process another
+    test may have left them installed, and 07.1's checker judges a change from the state it found."""
+    if get_current_signal_handlers_options() != SignalHandlerOptions.NO:
+        uninstall_signal_handlers()
 
 
 def _failed(report) -> list[str]:
