@@ -27,6 +27,20 @@ import pytest
 NEEDS_MARK = re.compile(r"^# COURSE_NEEDS: (\w+)\s*$", re.MULTILINE)
 
 
+def _kernels_on_private_sockets() -> None:
+    """nbval's workers start their kernels at the same moment; over TCP two of them can be handed the
+    same port and one kernel dies before its first cell (tools/kernels.py). nbval builds its
+    KernelManager by the name in its module, so that name gets the one with sockets of its own."""
+    import nbval.kernel
+
+    from tools.kernels import PrivateSocketKernelManager
+
+    nbval.kernel.KernelManager = PrivateSocketKernelManager
+
+
+_kernels_on_private_sockets()
+
+
 def _reason_ros1() -> str | None:
     from course_helpers.chapters.ch01_ros1.ros1 import ros1_unavailable_reason
 

@@ -7,7 +7,7 @@ import subprocess
 import tempfile
 import time
 
-from jupyter_client import KernelManager
+from tools.kernels import PrivateSocketKernelManager
 
 
 class KernelSession:
@@ -19,7 +19,7 @@ class KernelSession:
         env = dict(os.environ)
         env.pop("ROS_DOMAIN_ID", None)  # the kernel reserves its own, unless the test sets one
         env.update(extra)
-        self.km = KernelManager(kernel_name="python3")
+        self.km = PrivateSocketKernelManager(kernel_name="python3")  # no port to collide on
         self.km.start_kernel(cwd=cwd, env=env, stderr=self.stderr_file,
                              stdout=subprocess.DEVNULL,
                              extra_arguments=[], independent=False)
