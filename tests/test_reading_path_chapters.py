@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import ast
 import glob
-import json
 import os
 
 import pytest
 from IPython.core.inputtransformer2 import TransformerManager
 
-from tools.reading_path import DEEP_DIVE, HEADING, chapter, heading_level
+from tools.reading_path import DEEP_DIVE, HEADING, chapter, heading_level, notebook_cells, walk
 
 from .conftest import REPO
 
@@ -48,9 +47,7 @@ def deep_dive_problems(cells: list[dict]) -> list[str]:
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[os.path.basename(p) for p in NOTEBOOKS])
 def test_every_deep_dive_is_collapsed_and_says_so(path):
-    with open(path, encoding="utf-8") as handle:
-        cells = json.load(handle)["cells"]
-    assert not deep_dive_problems(cells)
+    assert not deep_dive_problems(notebook_cells(path))
 
 
 def test_the_deep_dive_check_finds_a_plain_title_and_an_open_section():
@@ -82,18 +79,11 @@ def core_needs_a_deep_dive(cells: list[dict]) -> list[str]:
     """Names a core code cell reads that only a deep dive before it binds: a student who skips the
     collapsed sections would meet a NameError there."""
     found, core_bound, deep_bound = [], set(), set()
-    deep_level = None
-    for index, cell in enumerate(cells):
-        level = heading_level(cell)
-        tags = cell.get("metadata", {}).get("tags", [])
-        if level is not None and deep_level is not None and level <= deep_level:
-            deep_level = None
-        if level is not None and DEEP_DIVE in tags and deep_level is None:
-            deep_level = level
+    for index, (cell, in_deep_dive) in enumerate(walk(cells)):
         if cell["cell_type"] != "code":
             continue
         bound, used = _bound_and_used("".join(cell["source"]))
-        if deep_level is not None or DEEP_DIVE in tags:
+        if in_deep_dive:
             deep_bound |= bound
             continue
         for name in sorted((used & deep_bound) - core_bound - bound):
@@ -104,9 +94,7 @@ def core_needs_a_deep_dive(cells: list[dict]) -> list[str]:
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[os.path.basename(p) for p in NOTEBOOKS])
 def test_the_core_path_needs_no_deep_dive(path):
-    with open(path, encoding="utf-8") as handle:
-        cells = json.load(handle)["cells"]
-    assert not core_needs_a_deep_dive(cells)
+    assert not core_needs_a_deep_dive(notebook_cells(path))
 
 
 def test_the_check_finds_a_core_cell_that_reads_a_deep_dives_name():

@@ -63,11 +63,14 @@ def prose_words(text: str) -> int:
     return len(WORD.findall(CODE_BLOCK.sub(" ", text)))
 
 
-def chapter(path: str) -> Chapter:
-    """Words and run time of a notebook's core path and of its deep dives."""
+def notebook_cells(path: str) -> list[dict]:
     with open(path, encoding="utf-8") as handle:
-        cells = json.load(handle)["cells"]
-    core, deep = Path(), Path()
+        return json.load(handle)["cells"]
+
+
+def walk(cells: list[dict]):
+    """Each cell with whether it is in a deep dive: under a tagged heading (until the next heading of
+    the same or a higher level) or tagged itself."""
     deep_level = None  # the level of the deep-dive heading we are under, if any
     for cell in cells:
         level = heading_level(cell)
@@ -76,7 +79,14 @@ def chapter(path: str) -> Chapter:
             deep_level = None
         if level is not None and DEEP_DIVE in tags and deep_level is None:
             deep_level = level
-        where = deep if deep_level is not None or DEEP_DIVE in tags else core
+        yield cell, deep_level is not None or DEEP_DIVE in tags
+
+
+def chapter(path: str) -> Chapter:
+    """Words and run time of a notebook's core path and of its deep dives."""
+    core, deep = Path(), Path()
+    for cell, in_deep_dive in walk(notebook_cells(path)):
+        where = deep if in_deep_dive else core
         if cell["cell_type"] == "markdown":
             where.words += prose_words("".join(cell["source"]))
         elif cell["cell_type"] == "code":
