@@ -85,9 +85,13 @@ class Lab:
 
 @contextlib.contextmanager
 def jupyter_lab(root: str | Path = REPO / "notebooks", env: dict[str, str] | None = None,
-                options: tuple[str, ...] = ()) -> Iterator[Lab]:
+                options: tuple[str, ...] = (), kernel_transport: str = "ipc") -> Iterator[Lab]:
     """JupyterLab serving ``root`` for the block (see the module's docstring). ``env`` adds variables to
-    the server's (and so its kernels') environment; ``options`` are more command-line options."""
+    the server's (and so its kernels') environment; ``options`` are more command-line options.
+
+    Its kernels listen on Unix sockets in the runtime folder (``kernel_transport="ipc"``): no TCP port
+    to race the other tests' kernels for (tools/kernels.py). A kernel run as another user cannot make
+    sockets there; ``kernel_transport="tcp"`` is for that."""
     folder = Path(tempfile.mkdtemp(prefix="course-lab-test-"))
     settings = write_lab_settings(folder / "settings")
     port, token = free_port(), secrets.token_hex(16)
@@ -101,6 +105,7 @@ def jupyter_lab(root: str | Path = REPO / "notebooks", env: dict[str, str] | Non
             f"--FileCheckpoints.root_dir={folder / 'checkpoints'}",  # not beside the course's notebooks
             "--LabApp.extension_manager=readonly", "--LabApp.news_url=None",
             "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
+            f"--KernelManager.transport={kernel_transport}",
             *(["--allow-root"] if os.geteuid() == 0 else []), *options]
     server = ServerProcess(argv, folder / "jupyter.log", cwd=REPO, env=environment, what="JupyterLab")
     lab = Lab(f"http://127.0.0.1:{port}", token, server, folder)

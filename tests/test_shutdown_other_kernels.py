@@ -84,7 +84,8 @@ def test_shutdown_other_kernels_stops_this_users_other_kernel_and_leaves_another
         home.mkdir()
         os.chown(home, user.pw_uid, user.pw_gid)
         share = _kernelspec(workdir / "share", user, python, home)
-        with jupyter_lab(env={"JUPYTER_PATH": str(share)}) as lab:
+        # the neighbour's kernel runs as another user, who may not make sockets in the runtime folder
+        with jupyter_lab(env={"JUPYTER_PATH": str(share)}, kernel_transport="tcp") as lab:
             for folder in (lab.folder, lab.folder / "runtime"):  # the neighbour reads its connection file
                 folder.chmod(0o755)
             mine, mine_channels = lab.open_notebook("00_welcome.ipynb")

@@ -5,6 +5,9 @@ starting a kernel at that moment can be handed the same port, and one of the two
 ("Address already in use"; 1 kernel start in 90, six at a time, on the 2-core development machine, as
 when nbval's six workers start their first notebooks). A kernel that listens on Unix sockets in a
 folder of its own has nothing to collide on: 0 in 90 the same way.
+
+:class:`PrivateSocketKernelManager` is for code that drives a kernel itself (nbval, the tests);
+:class:`AsyncPrivateSocketKernelManager` for nbclient, which nbgrader's autograde uses.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import shutil
 import tempfile
 import uuid
 
-from jupyter_client.manager import KernelManager
+from jupyter_client.manager import AsyncKernelManager, KernelManager
 
 _folder: list[str] = []  # this process's folder of kernel sockets, made on first use
 
@@ -27,11 +30,19 @@ def _socket_folder() -> str:
     return _folder[0]
 
 
-class PrivateSocketKernelManager(KernelManager):
-    """A KernelManager whose kernel listens on Unix sockets named after a fresh id (jupyter_client's
+class _PrivateSockets:
+    """Makes a KernelManager's kernel listen on Unix sockets named after a fresh id (jupyter_client's
     ``ipc`` transport), so that no other kernel can take its addresses."""
 
     def __init__(self, **kwargs):
         kwargs.setdefault("transport", "ipc")
         kwargs.setdefault("ip", os.path.join(_socket_folder(), uuid.uuid4().hex))
         super().__init__(**kwargs)
+
+
+class PrivateSocketKernelManager(_PrivateSockets, KernelManager):
+    """jupyter_client's KernelManager on sockets of its own."""
+
+
+class AsyncPrivateSocketKernelManager(_PrivateSockets, AsyncKernelManager):
+    """jupyter_client's AsyncKernelManager on sockets of its own."""

@@ -7,16 +7,20 @@
   ends, or the time runs out; :meth:`~ServerProcess.stop` sends SIGTERM and, after a while, SIGKILL
   to its whole session;
 * :func:`answers` and :func:`api` ask a Jupyter server's REST API with its token;
-* :func:`free_port` is a free TCP port of this machine's loopback.
+* :func:`free_port` is a free TCP port of this machine's loopback that no other program will be
+  handed before the server binds it.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import random
 import signal
 import socket
 import subprocess
+import tempfile
 import urllib.error
 import urllib.request
 from collections.abc import Callable
@@ -24,12 +28,45 @@ from pathlib import Path
 
 from course_helpers.core.waiting import poll_until
 
+_held_ports: list = []  # the lock files of the ports this process was handed, held until it exits
+
+
+def _ephemeral_ports() -> range:
+    """The ports the kernel hands out for a bind to port 0 (Linux's ``ip_local_port_range``)."""
+    try:
+        low, high = map(int, Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split())
+        return range(low, high + 1)
+    except (OSError, ValueError):
+        return range(32768, 61000)  # Linux's default
+
 
 def free_port() -> int:
-    """A TCP port that is free on 127.0.0.1 now."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
+    """A TCP port that is free on 127.0.0.1 now, for a server that binds it a moment later.
+
+    The usual way, binding port 0 and letting go, races: any program that binds port 0 in that moment
+    (a Jupyter kernel does, five times) can be handed the same port. A CI run lost so the hub's proxy
+    port to a kernel of another test worker. So the port comes from below the range that port 0 draws
+    from, where nothing is handed out, and a lock file per port, held until this process ends, keeps
+    the other test processes of this user from choosing it too.
+    """
+    ephemeral = _ephemeral_ports()
+    candidates = [p for p in range(20000, 32768) if p not in ephemeral] or list(range(20000, 32768))
+    locks = Path(tempfile.gettempdir()) / f"course-ports-{os.getuid()}"
+    locks.mkdir(mode=0o700, exist_ok=True)
+    if locks.stat().st_uid != os.getuid():
+        raise RuntimeError(f"{locks} belongs to another user; remove it, or set TMPDIR to a folder of yours")
+    for port in random.sample(candidates, min(len(candidates), 200)):
+        handle = open(locks / str(port), "a")  # noqa: SIM115 - held open until this process ends
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            with socket.socket() as sock:
+                sock.bind(("127.0.0.1", port))
+        except OSError:  # another test process holds it, or something listens there
+            handle.close()
+            continue
+        _held_ports.append(handle)
+        return port
+    raise RuntimeError(f"no free TCP port on 127.0.0.1 in {candidates[0]}-{candidates[-1]} (200 tried)")
 
 
 def api(base: str, token: str | None, path: str, method: str = "GET", body: dict | None = None,

@@ -24,6 +24,7 @@ def grading_config(course_dir: str, timeout: int | None = None, record: str = ""
     from traitlets.config.loader import PyFileConfigLoader
 
     from tools.grading.guarded import GuardedExecute
+    from tools.kernels import AsyncPrivateSocketKernelManager
 
     config = PyFileConfigLoader("nbgrader_config.py", path=course_dir).load_config()
     config.CourseDirectory.root = course_dir
@@ -40,6 +41,9 @@ def grading_config(course_dir: str, timeout: int | None = None, record: str = ""
     config.Execute.error_on_timeout = {"ename": "CellTimeoutError", "evalue": message,
                                        "traceback": [f"CellTimeoutError: {message}"]}
     config.GuardedExecute.record_path = record
+    # Several submissions may be graded at once (the tests do): over TCP two kernels could be handed
+    # one port, and one would die before its first cell (tools/kernels.py).
+    config.Execute.kernel_manager_class = AsyncPrivateSocketKernelManager
     return config
 
 
