@@ -220,7 +220,7 @@ CONVEYOR = {  # full name -> (kind, parameters the exercise asks for)
     "/line1/counter": ("listener", {"topic": "items", "log_every": 5}),
 }
 CONVEYOR_TOPIC = "/line1/items"
-HEAR_TIMEOUT_S = 5.0  # how long the listener's process may take to hear its first message [s]
+HANG_S = 30.0  # bounds a hang only: a node answers its parameter services and hears a matched talker in ms
 LAUNCH_LABEL = "ex06_conveyor"
 MISWIRED_LABEL = "ex06_miswired"
 
@@ -250,13 +250,7 @@ def check_conveyor_launch(describe, proves_they_talk, rt=None) -> CheckReport:
         report.add("the two nodes start together", True, ", ".join(group.node_names))
         _check_parameters(report, rt, probe)
         counter = next(child for child, entry in group.members if entry.fqn == "/line1/counter")
-        heard = poll_until(lambda: (counter.last("heard") or {}).get("count", 0) >= 1, HEAR_TIMEOUT_S)
-        last = (counter.last("heard") or {}).get("last", "")
-        report.add("the counter hears the belt sensor (its process says so)",
-                   heard and last.startswith("item "),
-                   f"last message heard: {last!r}" if heard else "it heard nothing",
-                   "Both nodes must resolve to the same topic: a node's namespace and its topic "
-                   "parameter decide it together.")
+        _check_they_talk(report, probe, counter)
         said = _ask_proof(proves_they_talk, rt)
         report.add("your proof says yes for your running nodes", said is True, _said(said),
                    "The exercise's second point lists what the proof looks at, and how it waits for "
@@ -285,16 +279,49 @@ def _check_description(report: CheckReport, entries) -> bool:
                       "The exercise gives each node's kind, name and namespace.")
 
 
+def _string_topics(probe: Node, fqn: str, publishers: bool) -> set[str]:
+    """The std_msgs/String topics that node ``fqn`` publishes (or subscribes to), as the graph lists them."""
+    namespace, name = fqn.rsplit("/", 1)
+    query = (probe.get_publisher_names_and_types_by_node if publishers
+             else probe.get_subscriber_names_and_types_by_node)
+    try:
+        return {topic for topic, types in query(name, namespace) if "std_msgs/msg/String" in types}
+    except Exception:  # rclpy's NodeNameNonExistentError: not (or no longer) in the graph
+        return set()
+
+
+def _check_they_talk(report: CheckReport, probe: Node, counter) -> None:
+    """The counter hears the belt sensor: both on one topic in the graph, then its process says it heard.
+
+    The graph decides whether they can talk, so a miswired pair fails at once; a pair on one topic
+    talks within milliseconds of matching, and HANG_S only bounds a hang.
+    """
+    criterion = "the counter hears the belt sensor (its process says so)"
+    hint = ("Both nodes must resolve to the same topic: a node's namespace and its topic parameter "
+            "decide it together.")
+    sensor, listener = "/line1/belt_sensor", "/line1/counter"
+    poll_until(lambda: _string_topics(probe, sensor, True) and _string_topics(probe, listener, False), HANG_S)
+    sends, hears = _string_topics(probe, sensor, True), _string_topics(probe, listener, False)
+    if not sends & hears:
+        report.add(criterion, False, f"the belt sensor publishes on {sorted(sends) or 'nothing'}, "
+                   f"the counter listens on {sorted(hears) or 'nothing'}", hint)
+        return
+    heard = poll_until(lambda: (counter.last("heard") or {}).get("count", 0) >= 1, HANG_S)
+    last = (counter.last("heard") or {}).get("last", "")
+    said = f"last message heard: {last!r}" if heard else f"it heard nothing on {sorted(sends & hears)}"
+    report.add(criterion, heard and last.startswith("item "), said, hint)
+
+
 def _check_parameters(report: CheckReport, rt, probe: Node) -> None:
     """Read every asked-for parameter back through the node's get_parameters service."""
     wrong = []
     for fqn, (_kind, wanted) in CONVEYOR.items():
         client = AsyncParameterClient(probe, fqn)
-        if not client.wait_for_services(5.0):
+        if not client.wait_for_services(HANG_S):
             wrong.append(f"{fqn} offers no parameter services")
             continue
         names = sorted(wanted)
-        response = rt.wait_for_future(client.get_parameters(names), 3.0, f"{fqn}'s parameters")
+        response = rt.wait_for_future(client.get_parameters(names), HANG_S, f"{fqn}'s parameters")
         for name, value in zip(names, response.values, strict=True):
             got = parameter_value_to_python(value)
             if got != wanted[name] or type(got) is not type(wanted[name]):
@@ -319,7 +346,7 @@ def _check_proof_says_no(report: CheckReport, rt, proves_they_talk) -> bool:
     finally:
         group.stop()
         # its nodes leave the graph before the student's nodes (same names) start
-        poll_until(lambda: not set(group.node_names) & set(rt.graph_nodes()), 5.0)
+        poll_until(lambda: not set(group.node_names) & set(rt.graph_nodes()), HANG_S)
     return report.add("your proof says no when the counter listens on another topic (/line1/items_v2)",
                       said is not True, _said(said),
                       "Messages on the topic alone do not show that the counter hears them: what else does "

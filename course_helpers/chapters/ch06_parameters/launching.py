@@ -17,6 +17,7 @@ from course_helpers.core.errors import CourseError
 from course_helpers.core.names import full_name
 from course_helpers.core.processes import ChildProcess
 from course_helpers.core.runtime import get_runtime
+from course_helpers.core.spawning import CHILD_HANG_S
 from course_helpers.core.validation import check_namespace, check_node_name
 from course_helpers.core.waiting import poll_until
 
@@ -89,14 +90,16 @@ class LaunchGroup:
         return f"<LaunchGroup {self.label!r}: {', '.join(self.node_names)} ({state})>"
 
 
-def launch(nodes: list[NodeLaunch], label: str = "launch", rt=None, timeout_s: float = 20.0) -> LaunchGroup:
+def launch(nodes: list[NodeLaunch], label: str = "launch", rt=None,
+           timeout_s: float = CHILD_HANG_S) -> LaunchGroup:
     """Start every node of ``nodes`` in its own child process, then wait until all are in the graph.
 
     Args:
         nodes: the :class:`NodeLaunch` entries (distinct full names).
         label: names the group; re-running with the same label stops the previous group first.
         rt: the runtime (default: this kernel's).
-        timeout_s: how long each node may take to appear [s].
+        timeout_s: how long each node may take to appear [s]; it bounds a hang only (a node
+            appears in a second or two, more on a busy machine).
 
     Returns the :class:`LaunchGroup`. If a process exits or a node does not appear in time,
     the group is stopped and the error (a CourseError or WaitTimeout with the process's
