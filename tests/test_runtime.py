@@ -218,6 +218,14 @@ def test_wait_timeout_names_what_it_waited_for(rt):
         rt.wait_until(lambda: "/gone_already" in rt.graph_nodes(), 0.3, "the node gone_already")
 
 
+def test_a_childs_node_that_never_appears_is_reported_with_what_the_graph_lists(rt):
+    child = rt.spawn("wrong_name", "course_helpers.nodes:make_talker", params={"name": "named_otherwise"},
+                     wait_for="/named_otherwise")
+    with pytest.raises(WaitTimeout, match=r"none named /never_there; the process has used \d+\.\d s of CPU"):
+        rt.wait_for_child_node(child, "/never_there", 0.5)
+    rt.stop_child("wrong_name")
+
+
 def test_a_failing_callback_is_reported_and_others_keep_running(rt):
     class Faulty(Talker):
         def tick(self):

@@ -122,6 +122,14 @@ class GraphView:
 
         return self._cached(("entry", fqn), compute)
 
+    def whereabouts(self, fqn: str) -> str:
+        """What the graph says of node ``fqn`` right now, in words, for the message of a wait that ran out:
+        whether it lists the name at all, and with or without endpoints."""
+        listed = node_full_names(self.node.get_node_names_and_namespaces(), True)
+        if fqn not in listed:
+            return f"the graph lists {len(listed)} node(s), none named {fqn}"
+        return f"the graph lists {fqn} with {'its endpoints' if any(self.entry(fqn)) else 'no endpoint yet'}"
+
     def close(self) -> None:
         """Stop the watcher and destroy the hidden node."""
         if self._watcher is not None:

@@ -118,6 +118,15 @@ class LoadMeter:
                            children=tuple(sorted(pid for kernel in kernels for pid in kernel.children)))
 
 
+def cpu_seconds(pid: int) -> float | None:
+    """The CPU time process ``pid`` has used so far (user and system), or None if it has ended."""
+    try:
+        times = psutil.Process(pid).cpu_times()
+    except psutil.Error:
+        return None
+    return times.user + times.system
+
+
 def _machine_busy_seconds() -> float:
     """CPU seconds every core spent on anything but idling, since boot."""
     times = psutil.cpu_times()
