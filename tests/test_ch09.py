@@ -190,6 +190,15 @@ def test_package_checker_fails_each_criterion_on_a_wrong_package(rt, make_wrong_
     assert criteria <= _failed(report), report.summary()
 
 
+def test_an_unclean_ctrl_c_is_shown_with_the_processes_last_words(rt):
+    uncaught = _changed(MODULE, "except (KeyboardInterrupt, ExternalShutdownException):",
+                        "except ExternalShutdownException:")
+    [stop] = [c for c in check_package(uncaught(reference_package())).criteria
+              if c.name == "Ctrl+C stops it cleanly (exit code 0)"]
+    assert not stop.passed, stop.detail
+    assert "its last output:" in stop.detail and "KeyboardInterrupt" in stop.detail, stop.detail
+
+
 def test_package_checker_hint_tells_a_missing_entry_point_from_a_wrong_setup_cfg(rt):
     for make_wrong_files, hint in ((NO_ENTRY_POINT, "console_scripts"), (SCRIPTS_IN_BIN, "install_scripts")):
         failed = [c for c in check_package(make_wrong_files(reference_package())).criteria if not c.passed]
