@@ -17,6 +17,7 @@ from std_msgs.msg import Float64, String
 
 from course_helpers.chapters.ch06_parameters import NodeLaunch, launch
 from course_helpers.checks import CheckReport, callback_errors_criterion, student_on_clock
+from course_helpers.core.names import split_full_name
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.sim_clock import MATCH_TIMEOUT_S
 from course_helpers.core.waiting import poll_until
@@ -281,7 +282,7 @@ def _check_description(report: CheckReport, entries) -> bool:
 
 def _string_topics(probe: Node, fqn: str, publishers: bool) -> set[str]:
     """The std_msgs/String topics that node ``fqn`` publishes (or subscribes to), as the graph lists them."""
-    namespace, name = fqn.rsplit("/", 1)
+    namespace, name = split_full_name(fqn)
     query = (probe.get_publisher_names_and_types_by_node if publishers
              else probe.get_subscriber_names_and_types_by_node)
     try:
@@ -299,9 +300,15 @@ def _check_they_talk(report: CheckReport, probe: Node, counter) -> None:
     criterion = "the counter hears the belt sensor (its process says so)"
     hint = ("Both nodes must resolve to the same topic: a node's namespace and its topic parameter "
             "decide it together.")
-    sensor, listener = "/line1/belt_sensor", "/line1/counter"
-    poll_until(lambda: _string_topics(probe, sensor, True) and _string_topics(probe, listener, False), HANG_S)
-    sends, hears = _string_topics(probe, sensor, True), _string_topics(probe, listener, False)
+    seen: dict[str, set[str]] = {}
+
+    def both_listed() -> bool:
+        seen["sends"] = _string_topics(probe, "/line1/belt_sensor", True)
+        seen["hears"] = _string_topics(probe, "/line1/counter", False)
+        return bool(seen["sends"] and seen["hears"])
+
+    poll_until(both_listed, HANG_S)
+    sends, hears = seen["sends"], seen["hears"]
     if not sends & hears:
         report.add(criterion, False, f"the belt sensor publishes on {sorted(sends) or 'nothing'}, "
                    f"the counter listens on {sorted(hears) or 'nothing'}", hint)

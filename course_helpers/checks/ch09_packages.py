@@ -200,9 +200,11 @@ def _listen_and_stop(report: CheckReport, rt, child, topic: str, msg_type: str) 
         code = child.wait_for_exit(CTRL_C_EXIT_S, "it to leave after Ctrl+C")
     except WaitTimeout:
         code = None
-    said = [line for line in child.log().splitlines() if line.strip()][-3:]
-    detail = (f"still running after {CTRL_C_EXIT_S:g} s" if code is None else f"exit code {code}"
-              + (f"; its last output: {' | '.join(said)}" if code and said else ""))
+    if code is None:
+        detail = f"still running after {CTRL_C_EXIT_S:g} s"
+    else:
+        said = [line for line in child.log().splitlines() if line.strip()][-3:]
+        detail = f"exit code {code}" + (f"; its last output: {' | '.join(said)}" if code and said else "")
     report.add("Ctrl+C stops it cleanly (exit code 0)", code == 0, detail,
                "Catch KeyboardInterrupt (and rclpy.executors.ExternalShutdownException) around "
                "rclpy.spin(), then destroy the node and call rclpy.try_shutdown().")
