@@ -107,6 +107,7 @@ soak: setup
 bench: setup
 	$(PY) benchmarks/executor_throughput.py
 	$(PY) benchmarks/discovery_latency.py
+	$(PY) benchmarks/discovery_after_crash.py
 
 # Re-execute the notebooks in place so the committed outputs are fresh (maintainers).
 execute: setup

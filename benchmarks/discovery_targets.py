@@ -69,3 +69,10 @@ def probe_procedure(index: int) -> None:
     report("result", start=started, created=created, seen=seen, matched=probe.matched_at)
     # leaving now would hide the probe from an anchor that has not listed it yet
     time.sleep(max(0.0, created + PROBE_TIMEOUT_S - time.monotonic()))
+
+
+def named_node_procedure(name: str) -> None:
+    """A child procedure: make node ``name``, report 'ready', then wait to be stopped or killed."""
+    get_runtime().add(Node, name)
+    report("ready")
+    time.sleep(300)

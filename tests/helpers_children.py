@@ -58,3 +58,37 @@ def start_program_tree() -> None:
                     processes.program_argv("sh", "-c", "sleep 300 & sleep 300 & wait"),
                     group="test", channel=False)
     time.sleep(300)
+
+
+def hold_a_named_node(name: str, participants: int = 1) -> None:
+    """A procedure: ``participants`` participants in this process (a node ``<name>_<i>`` in each, on
+    the domain of the course's environment), report 'ready' with this process's UDP ports, then wait
+    to be stopped or killed."""
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    from course_helpers.core.dds_config import init_context
+    from course_helpers.core.udp_sockets import udp_sockets
+
+    domain = int(os.environ["ROS_DOMAIN_ID"])
+    nodes = []
+    for i in range(participants):
+        context = Context()
+        init_context(context, domain)
+        nodes.append(Node(f"{name}_{i}", context=context))
+    report("ready", ports=sorted({port for _, port in udp_sockets()}),
+           profile=os.path.basename(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", "")))
+    time.sleep(300)
+
+
+def report_when_it_sees(name: str) -> None:
+    """A procedure: a node ``watcher``; reports 'seen' once this process's graph lists node ``name``."""
+    from rclpy.node import Node
+
+    from course_helpers.core.runtime import get_runtime
+
+    node = get_runtime().add(Node, "watcher")
+    get_runtime().wait_until(lambda: name in [n for n, _ in node.get_node_names_and_namespaces()], 30,
+                             f"this child to see {name}")
+    report("seen", name=name)
+    time.sleep(300)

@@ -11,8 +11,8 @@ import pytest
 from course_helpers.core import dds_config
 from course_helpers.core.dds_config import (
     DEFAULTS_PROFILE,
-    LOCALHOST_PROFILE,
     RANGE_ENV,
+    SLOT_PROFILE_STEM,
     TIMING_PROFILE,
     UDP_PROFILE,
     default_discovery_env,
@@ -29,7 +29,7 @@ def _setup_of(rt, label: str, env: dict | None = None) -> dict:
 def test_a_child_gets_the_localhost_profile_listens_on_loopback_only_and_is_found(rt):
     setup = _setup_of(rt, "course_child")
     assert setup["range"] == "LOCALHOST"  # the variable children see is what the course promises
-    assert setup["profile"] == LOCALHOST_PROFILE
+    assert setup["profile"].startswith(SLOT_PROFILE_STEM + "_")  # the localhost profile on a slot of its own
     assert setup["udp"] and set(setup["udp"]) == {"127.0.0.1"}, setup["udp"]
     rt.wait_until(lambda: "/setup_reporter" in rt.graph_nodes(), 20, "the kernel to find the child's node")
 

@@ -51,6 +51,10 @@ another lease: peers drop a crashed child that long after its last announcement 
 ``discovery_server_profile(directory, lease_s)`` writes one that keeps the server a server and sets its
 lease and announcements (chapter 07 kills a server and needs its clients to drop it soon).
 
+**A port slot per child.** ``slot_profile_env(directory, slot)`` is the localhost profile with the
+unicast ports of participant id ``slot``; the process layer gives each child a slot of its own, so
+that it never takes over the ports a killed child left (:mod:`.port_slots`).
+
 Profiles are written into a folder private to the process (``processes.log_dir()``), never to a
 shared, predictable path that another user could create first.
 
@@ -60,6 +64,7 @@ A user who set ``FASTRTPS_DEFAULT_PROFILES_FILE`` keeps their own profile.
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 import threading
 from contextlib import contextmanager
@@ -87,6 +92,9 @@ UDP_PROFILE = "course_udp_loopback.xml"  # UDP on 127.0.0.1 only, tuned timing
 DEFAULTS_PROFILE = "fastdds_default_discovery.xml"  # Fast DDS's timing, for comparisons
 SERVER_PROFILE_STEM = "course_discovery_server_lease"  # + _<ms>ms.xml
 LEASE_PROFILE_STEMS = ("course_localhost_lease", "course_timing_lease")  # + _<ms>ms.xml, by range
+SLOT_PROFILE_STEM = "course_localhost_slot"  # + _<slot>.xml: the localhost profile on a child's port slot
+# the localhost profiles a child gets a port slot of: plain or with a short lease, maybe on a parent's slot
+_SLOTTABLE = re.compile(r"course_localhost(?:_lease_(\d+)ms)?(?:_slot_\d+)?\.xml")
 _CHOSEN_BY_RANGE = (LOCALHOST_PROFILE, TIMING_PROFILE)  # picked per process, may be replaced
 MIN_LEASE_S, MAX_LEASE_S = 0.5, 60.0  # s; a lease must be several announcements long
 
@@ -99,7 +107,7 @@ def _duration(tag: str, seconds: float) -> str:
 
 
 def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = True,
-                lease_s: float = LEASE_S) -> str:
+                lease_s: float = LEASE_S, slot: int = 0) -> str:
     """A Fast DDS profile: the default participant, and the graph topic's reader.
 
     Args:
@@ -107,6 +115,8 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
             to leave transports and peers to rmw_fastrtps.
         tuned: the course's timing; False gives Fast DDS's defaults (for comparisons).
         lease_s: how long peers keep the participant after its last announcement.
+        slot: the participant's unicast ports are those of participant id ``slot`` (and up), by the
+            port offsets; 0 leaves RTPS's own (:mod:`.port_slots` says why a child gets another).
     """
     unknown = set(transports) - {"SHM", "UDPv4"}
     if unknown:
@@ -130,6 +140,9 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
                       "    </transport_descriptor>"]
         lines.append("  </transport_descriptors>")
     lines += ['  <participant profile_name="course_participant" is_default_profile="true">', "    <rtps>"]
+    if slot:  # RTPS's unicast offsets d1 (discovery, 10) and d3 (data, 11), moved by 2 per id
+        lines.append(f"      <port><offsetd1>{10 + 2 * slot}</offsetd1>"
+                     f"<offsetd3>{11 + 2 * slot}</offsetd3></port>")
     if transports:
         ids = "".join(f"<transport_id>course_{t.lower().removesuffix('v4')}</transport_id>"
                       for t in transports)
@@ -177,7 +190,27 @@ def write_profile(directory: str, name: str, text: str) -> str:
 def _states_transports(path: str) -> bool:
     """True for the course's profiles that set up localhost-only transports themselves."""
     name = os.path.basename(path)
-    return name in (LOCALHOST_PROFILE, UDP_PROFILE) or name.startswith(LEASE_PROFILE_STEMS[0] + "_")
+    return name in (LOCALHOST_PROFILE, UDP_PROFILE) or name.startswith(
+        (LEASE_PROFILE_STEMS[0] + "_", SLOT_PROFILE_STEM + "_"))
+
+
+def slot_lease(env: dict[str, str]) -> float | None:
+    """The lease, in seconds, of the course's localhost profile (plain, a short lease, or either on a
+    parent's slot) that a child started with ``env`` would read; None for any other profile or range.
+    Such a child gets a port slot of its own (:mod:`.port_slots`)."""
+    match = _SLOTTABLE.fullmatch(os.path.basename(env.get(PROFILE_ENV, "")))
+    if env.get(RANGE_ENV, "").upper() != "LOCALHOST" or not match:
+        return None
+    return int(match.group(1)) / 1000 if match.group(1) else LEASE_S
+
+
+def slot_profile_env(directory: str, slot: int, lease_s: float = LEASE_S) -> dict[str, str]:
+    """The environment of a child whose participants listen on the ports of port slot ``slot``."""
+    stem = SLOT_PROFILE_STEM
+    if lease_s != LEASE_S:
+        stem = f"{LEASE_PROFILE_STEMS[0]}_{round(lease_s * 1000)}ms_slot"
+    text = profile_xml(lease_s=lease_s, slot=slot)
+    return {PROFILE_ENV: write_profile(directory, f"{stem}_{slot}.xml", text)}
 
 
 def _is_localhost_range() -> bool:

@@ -38,6 +38,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future
 
+from course_helpers.core import port_slots
 from course_helpers.core.channel import CHANNEL_ENV, ChannelReader
 from course_helpers.core.dds_config import environment_snapshot
 from course_helpers.core.errors import CourseError
@@ -313,6 +314,7 @@ def start(label: str, argv: list[str], *, group: str = "node", env: dict | None 
     full_env[PARENT_ENV] = str(os.getpid())
     full_env["PYTHONUNBUFFERED"] = "1"
     full_env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
+    slot = port_slots.assign(full_env, log_dir())  # its own ports, never a killed child's (port_slots)
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in label)
     log_path = os.path.join(log_dir(), f"{group}-{safe}-{time.monotonic_ns()}.log")
     read_fd = write_fd = None
@@ -324,9 +326,9 @@ def start(label: str, argv: list[str], *, group: str = "node", env: dict | None 
 
     def fork() -> subprocess.Popen:
         with open(log_path, "wb") as log:
-            return subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                    env=full_env, cwd=cwd or os.getcwd(), start_new_session=True,
-                                    pass_fds=(write_fd,) if channel else ())
+            return slot.start(lambda: subprocess.Popen(
+                argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=full_env,
+                cwd=cwd or os.getcwd(), start_new_session=True, pass_fds=(write_fd,) if channel else ()))
 
     try:
         process = _launcher.run(fork)
