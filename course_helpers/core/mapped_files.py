@@ -30,3 +30,28 @@ def mapped_files(pid: int | str = "self") -> list[str]:
 def shm_files(pid: int | str = "self") -> list[str]:
     """The basenames of the Fast DDS shared-memory files mapped into process ``pid``, sorted."""
     return sorted({os.path.basename(path) for path in mapped_files(pid) if path.startswith(FAST_DDS_SHM)})
+
+
+def replaced_shm_ports(pid: int | str = "self") -> list[str]:
+    """The Fast DDS shared-memory ports mapped into process ``pid`` whose file is gone from ``/dev/shm``
+    or is another file now (another process removed it and made a new one), sorted.
+
+    A participant listening on such a port no longer hears the processes that open the port after it
+    was replaced: they write into the new file."""
+    replaced = set()
+    try:
+        with open(f"/proc/{pid}/maps", encoding="utf-8", errors="replace") as maps:
+            for line in maps:
+                fields = line.split(maxsplit=5)
+                if len(fields) < 6 or not fields[5].startswith(FAST_DDS_SHM + "rtps_port"):
+                    continue
+                path = fields[5].strip().removesuffix(" (deleted)")
+                try:
+                    current = os.stat(path).st_ino
+                except OSError:
+                    current = None
+                if current != int(fields[4]):
+                    replaced.add(os.path.basename(path))
+    except OSError:
+        return []
+    return sorted(replaced)

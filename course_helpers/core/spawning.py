@@ -16,6 +16,7 @@ from course_helpers.core import processes
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.graph_view import GraphView
 from course_helpers.core.machine_load import cpu_seconds
+from course_helpers.core.mapped_files import replaced_shm_ports
 from course_helpers.core.validation import check_node_name
 from course_helpers.core.waiting import poll_until
 
@@ -83,9 +84,11 @@ class ChildNodes:
         if not poll_until(lambda: fqn in graph.nodes() or not child.alive, timeout, graph.wait_period):
             cpu = cpu_seconds(child.pid)
             used = "?" if cpu is None else f"{cpu:.1f}"
+            replaced = replaced_shm_ports()
+            ports = f"; shared-memory ports this process maps were replaced: {replaced}" if replaced else ""
             raise WaitTimeout(f"{child.group} process {child.label!r} did not show node {fqn} in the graph "
                               f"within {timeout:g} s ({graph.whereabouts(fqn)}; the process has used "
-                              f"{used} s of CPU). Its output:\n{child.output_tail()}")
+                              f"{used} s of CPU{ports}). Its output:\n{child.output_tail()}")
         if fqn not in graph.nodes():
             raise child.failure(f"node {fqn} appeared")
         entry, since = graph.entry(fqn), time.monotonic()
