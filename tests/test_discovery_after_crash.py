@@ -5,13 +5,20 @@ The figure is ``benchmarks/discovery_after_crash.py``'s headline (the course set
 children, each started after the one before was killed with SIGKILL): 0.18 s on the 2-core development
 machine. Left to Fast DDS, each new child took the killed one's participant id and ports, and its node
 was listed only at the next discovery heartbeat, 3.2 s later: the regression this test fails on.
+
+It measures in a fresh process, as a student's kernel starts: Fast DDS reads its profile file once per
+process, so a worker whose first participant came from another test's set-up would not measure the
+course's.
 """
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import pytest
 
-from benchmarks.discovery_after_crash import course_p90_after_crash
 from course_helpers.core.verdict import judge_timing
 
 # measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
@@ -21,9 +28,17 @@ BOUND_S = 0.5
 RUNS = 10
 
 
-def test_a_child_started_after_a_killed_one_is_seen_within_half_a_second(rt):
+def _course_p90() -> float:
+    env = {k: v for k, v in os.environ.items() if k != "ROS_DOMAIN_ID"}  # it reserves a domain of its own
+    done = subprocess.run([sys.executable, "-m", "benchmarks.discovery_after_crash", "--course-p90-only",
+                           "--runs", str(RUNS)], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return float(done.stdout.split()[-1])
+
+
+def test_a_child_started_after_a_killed_one_is_seen_within_half_a_second():
     verdict, _ = judge_timing(
         f"a child started after a killed one is in the kernel's node list within {BOUND_S} s (p90 of {RUNS})",
-        lambda: course_p90_after_crash(RUNS), lambda p90: p90 <= BOUND_S, show=lambda p90: f"p90 {p90:.3f} s")
+        _course_p90, lambda p90: p90 <= BOUND_S, show=lambda p90: f"p90 {p90:.3f} s")
     print(verdict.line())
     verdict.raise_unless_passed()

@@ -24,7 +24,7 @@ def _start(rt, label: str, name: str, participants: int = 1) -> tuple[set[int], 
 
 def _slot_of(profile: str) -> int:
     assert profile.startswith(SLOT_PROFILE_STEM + "_"), profile
-    return int(profile.removeprefix(SLOT_PROFILE_STEM + "_").removesuffix(".xml"))
+    return int(profile.removeprefix(SLOT_PROFILE_STEM + "_").split("_")[0])
 
 
 def test_a_child_listens_on_the_ports_of_its_slot_and_is_found(rt):
@@ -92,9 +92,9 @@ def test_a_running_child_keeps_its_slot(monkeypatch):
 
 @pytest.mark.parametrize("discovery_range, profile, lease_s", [
     ("LOCALHOST", "/p/course_localhost.xml", 20),
-    ("LOCALHOST", f"/p/{SLOT_PROFILE_STEM}_4.xml", 20),  # a grandchild: its parent's slot is not its own
+    ("LOCALHOST", f"/p/{SLOT_PROFILE_STEM}_4_domain7.xml", 20),  # a grandchild: not its parent's slot
     ("LOCALHOST", "/p/course_localhost_lease_2000ms.xml", 2.0),  # chapter 01's short lease
-    ("LOCALHOST", "/p/course_localhost_lease_2000ms_slot_4.xml", 2.0),
+    ("LOCALHOST", "/p/course_localhost_lease_2000ms_slot_4_domain7.xml", 2.0),
     ("LOCALHOST", "/p/course_udp_loopback.xml", None),
     ("LOCALHOST", "/p/fastdds_default_discovery.xml", None),
     ("LOCALHOST", "/home/me/mine.xml", None),  # the user's own profile
@@ -107,10 +107,11 @@ def test_children_on_the_course_localhost_profile_get_a_slot_and_keep_their_leas
 
 
 def test_the_slot_profile_moves_both_unicast_offsets(tmp_path):
-    path = slot_profile_env(str(tmp_path), 5)["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    path = slot_profile_env(str(tmp_path), 5, 3)["FASTRTPS_DEFAULT_PROFILES_FILE"]
     text = open(path, encoding="utf-8").read()
     assert "<offsetd1>20</offsetd1>" in text and "<offsetd3>21</offsetd3>" in text
     assert "<participantID>" not in text  # a second participant in the process must still get an id
-    short = slot_profile_env(str(tmp_path), 5, 2.0)["FASTRTPS_DEFAULT_PROFILES_FILE"]
-    assert short.endswith("course_localhost_lease_2000ms_slot_5.xml")
+    assert "<port>8160</port>" in text and "<port>8222</port>" in text  # ids 0 and 31 of domain 3: peers
+    short = slot_profile_env(str(tmp_path), 5, 3, 2.0)["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    assert short.endswith("course_localhost_lease_2000ms_slot_5_domain3.xml")
     assert "<leaseDuration><sec>2</sec>" in open(short, encoding="utf-8").read()

@@ -92,9 +92,9 @@ UDP_PROFILE = "course_udp_loopback.xml"  # UDP on 127.0.0.1 only, tuned timing
 DEFAULTS_PROFILE = "fastdds_default_discovery.xml"  # Fast DDS's timing, for comparisons
 SERVER_PROFILE_STEM = "course_discovery_server_lease"  # + _<ms>ms.xml
 LEASE_PROFILE_STEMS = ("course_localhost_lease", "course_timing_lease")  # + _<ms>ms.xml, by range
-SLOT_PROFILE_STEM = "course_localhost_slot"  # + _<slot>.xml: the localhost profile on a child's port slot
+SLOT_PROFILE_STEM = "course_localhost_slot"  # + _<slot>_domain<d>.xml: the localhost profile on a port slot
 # the localhost profiles a child gets a port slot of: plain or with a short lease, maybe on a parent's slot
-_SLOTTABLE = re.compile(r"course_localhost(?:_lease_(\d+)ms)?(?:_slot_\d+)?\.xml")
+_SLOTTABLE = re.compile(r"course_localhost(?:_lease_(\d+)ms)?(?:_slot_\d+_domain\d+)?\.xml")
 _CHOSEN_BY_RANGE = (LOCALHOST_PROFILE, TIMING_PROFILE)  # picked per process, may be replaced
 MIN_LEASE_S, MAX_LEASE_S = 0.5, 60.0  # s; a lease must be several announcements long
 
@@ -107,7 +107,7 @@ def _duration(tag: str, seconds: float) -> str:
 
 
 def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = True,
-                lease_s: float = LEASE_S, slot: int = 0) -> str:
+                lease_s: float = LEASE_S, slot: int = 0, domain_id: int = 0) -> str:
     """A Fast DDS profile: the default participant, and the graph topic's reader.
 
     Args:
@@ -117,6 +117,8 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
         lease_s: how long peers keep the participant after its last announcement.
         slot: the participant's unicast ports are those of participant id ``slot`` (and up), by the
             port offsets; 0 leaves RTPS's own (:mod:`.port_slots` says why a child gets another).
+        domain_id: with a slot, the domain whose ports of participant ids 0-31 are the initial peers
+            (without one, Fast DDS would count them from the moved offsets and miss ids below ``slot``).
     """
     unknown = set(transports) - {"SHM", "UDPv4"}
     if unknown:
@@ -153,10 +155,15 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
               f"          {_duration('leaseAnnouncement', announcement)}",
               "        </discovery_config>"]
     if transports:  # unicast discovery only, to 127.0.0.1: no multicast
+        if slot:  # the discovery ports of participant ids 0-31, as everyone else's peers
+            ports = (7410 + 250 * domain_id + 2 * i for i in range(PEER_IDS))
+            peers = "".join(f"<locator><udpv4><address>127.0.0.1</address><port>{port}</port></udpv4>"
+                            "</locator>" for port in ports)
+        else:  # port 0: Fast DDS fills in those of participant ids 0-31 (maxInitialPeersRange)
+            peers = "<locator><udpv4><address>127.0.0.1</address></udpv4></locator>"
         lines += ["        <metatrafficUnicastLocatorList><locator><udpv4/></locator>"
                   "</metatrafficUnicastLocatorList>",
-                  "        <initialPeersList><locator><udpv4><address>127.0.0.1</address></udpv4></locator>"
-                  "</initialPeersList>"]
+                  f"        <initialPeersList>{peers}</initialPeersList>"]
     lines += ["      </builtin>", "    </rtps>", "  </participant>"]
     if tuned:
         lines += [f'  <data_reader profile_name="{GRAPH_TOPIC}">',
@@ -204,13 +211,14 @@ def slot_lease(env: dict[str, str]) -> float | None:
     return int(match.group(1)) / 1000 if match.group(1) else LEASE_S
 
 
-def slot_profile_env(directory: str, slot: int, lease_s: float = LEASE_S) -> dict[str, str]:
-    """The environment of a child whose participants listen on the ports of port slot ``slot``."""
+def slot_profile_env(directory: str, slot: int, domain_id: int, lease_s: float = LEASE_S) -> dict[str, str]:
+    """The environment of a child whose participants listen on the ports of port slot ``slot`` of
+    ``domain_id``."""
     stem = SLOT_PROFILE_STEM
     if lease_s != LEASE_S:
         stem = f"{LEASE_PROFILE_STEMS[0]}_{round(lease_s * 1000)}ms_slot"
-    text = profile_xml(lease_s=lease_s, slot=slot)
-    return {PROFILE_ENV: write_profile(directory, f"{stem}_{slot}.xml", text)}
+    text = profile_xml(lease_s=lease_s, slot=slot, domain_id=domain_id)
+    return {PROFILE_ENV: write_profile(directory, f"{stem}_{slot}_domain{domain_id}.xml", text)}
 
 
 def _is_localhost_range() -> bool:

@@ -18,11 +18,12 @@ participant id ``slot``, a second one on the next, and so on; its participant id
 so a child may still make several participants. The slot is the one given up longest ago among those
 that no running child of this process holds and whose UDP ports no process has bound. A port is
 reused only after every other free slot has been, not by the next child. The same test gave 0 of
-732 children at 2.5 s or more.
+191 such children at 2.5 s or more; ``benchmarks/discovery_after_crash.py`` measures a child started
+right after a killed one: p90 0.16 s, against 3.17 s with Fast DDS's own choice.
 
-Every participant announces itself to the 32 ids above its own offset on 127.0.0.1 (``PEER_IDS``): the
-kernel (offset 0) reaches every slot, and of two children the one on the lower slot reaches the other,
-which is all discovery needs (the other side answers the announcement it got).
+Only the ports move: a child on a slot still announces itself to the discovery ports of participant
+ids 0 to 31 on 127.0.0.1 (``PEER_IDS``), as every other participant does, listed port by port in its
+profile (left to Fast DDS, the list would start at the slot's own offset and miss the ids below it).
 
 A child with a short lease (chapter 01) keeps its lease on its slot. A child whose environment names
 another profile (UDP only, Fast DDS's defaults, the user's own) keeps it; so does a child outside the
@@ -117,5 +118,5 @@ def assign(env: dict[str, str], directory: str) -> Assignment:
     if lease_s is not None and domain.isdigit():
         slot = take(int(domain), assignment.running)
         if slot is not None:
-            env.update(dds_config.slot_profile_env(directory, slot, lease_s))
+            env.update(dds_config.slot_profile_env(directory, slot, int(domain), lease_s))
     return assignment
