@@ -51,9 +51,9 @@ another lease: peers drop a crashed child that long after its last announcement 
 ``discovery_server_profile(directory, lease_s)`` writes one that keeps the server a server and sets its
 lease and announcements (chapter 07 kills a server and needs its clients to drop it soon).
 
-**A port slot per child.** ``slot_profile_env(directory, slot)`` is the localhost profile with the
-unicast ports of participant id ``slot``; the process layer gives each child a slot of its own, so
-that it never takes over the ports a killed child left (:mod:`.port_slots`).
+**A port slot per child.** ``slot_profile_env(directory, slot, domain_id, lease_s)`` is the localhost
+profile (with its lease) on the unicast ports of participant id ``slot``; the process layer gives each
+child a slot of its own, so that it never takes over the ports a killed child left (:mod:`.port_slots`).
 
 Profiles are written into a folder private to the process (``processes.log_dir()``), never to a
 shared, predictable path that another user could create first.
@@ -70,6 +70,7 @@ import threading
 from contextlib import contextmanager
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.udp_sockets import discovery_port
 
 PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
@@ -156,7 +157,7 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
               "        </discovery_config>"]
     if transports:  # unicast discovery only, to 127.0.0.1: no multicast
         if slot:  # the discovery ports of participant ids 0-31, as everyone else's peers
-            ports = (7410 + 250 * domain_id + 2 * i for i in range(PEER_IDS))
+            ports = (discovery_port(domain_id, i) for i in range(PEER_IDS))
             peers = "".join(f"<locator><udpv4><address>127.0.0.1</address><port>{port}</port></udpv4>"
                             "</locator>" for port in ports)
         else:  # port 0: Fast DDS fills in those of participant ids 0-31 (maxInitialPeersRange)

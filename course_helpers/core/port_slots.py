@@ -40,6 +40,7 @@ from collections.abc import Callable
 from typing import Any
 
 from course_helpers.core import dds_config
+from course_helpers.core.udp_sockets import discovery_port
 
 SLOTS = range(1, dds_config.PEER_IDS)  # slot 0 is where Fast DDS's own choice starts (the kernel)
 
@@ -50,7 +51,7 @@ _holders: dict[int, Callable[[], bool]] = {}  # slot -> is its child still runni
 
 def unicast_ports(domain_id: int, slot: int) -> tuple[int, int]:
     """The discovery and data ports of participant id ``slot`` in ``domain_id`` (RTPS's port mapping)."""
-    discovery = 7400 + 250 * domain_id + 10 + 2 * slot
+    discovery = discovery_port(domain_id, slot)
     return discovery, discovery + 1
 
 

@@ -46,6 +46,12 @@ def reachable_from_network(sockets: list[tuple[str, int]]) -> list[tuple[str, in
 GRAPH_PORTS = (7400 - 400, 7400)
 
 
+def discovery_port(domain: int, participant_id: int) -> int:
+    """The unicast discovery (metatraffic) port of participant ``participant_id`` in ``domain``, by the
+    RTPS port mapping (the specification's defaults, which Fast DDS uses); its data port is the next one."""
+    return 7400 + 250 * domain + 10 + 2 * participant_id
+
+
 def classify_port(port: int, domain_id: int) -> str:
     """What a UDP ``port`` of a participant in ``domain_id`` is for, as a short phrase.
 

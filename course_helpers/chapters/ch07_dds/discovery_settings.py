@@ -30,6 +30,7 @@ from course_helpers.core.dds_config import (
 )
 from course_helpers.core.domains import reserve_domain, reserve_spare_domain
 from course_helpers.core.errors import CourseError
+from course_helpers.core.udp_sockets import discovery_port
 from course_helpers.core.waiting import poll_until
 
 SETTINGS = {
@@ -42,12 +43,6 @@ SETTINGS = {
 PROBE_TIMEOUT_S = 6.5  # s; two default announcement periods and a margin
 ANCHOR_SETTLE_S = 1.0  # s; past the anchors' first, fast announcements (5 at 0.1 s), into the period
 _domains: list[int] = []  # the two domains of the comparison, reserved once per process
-
-
-# RTPS ports of a domain (the RTPS specification's defaults, which Fast DDS uses)
-def discovery_port(domain: int, participant_id: int) -> int:
-    """The unicast discovery (metatraffic) port of participant ``participant_id`` in ``domain``."""
-    return 7400 + 250 * domain + 10 + 2 * participant_id
 
 
 def _comparison_domains() -> list[int]:
