@@ -39,6 +39,7 @@ from course_helpers.chapters.ch06_parameters import (
 from course_helpers.core.node_hook import hook_installed
 from course_helpers.nodes import Listener, Talker
 from course_helpers.solutions.ch05_actions import NavigationServer
+from tests.timing import assert_timing
 
 # measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
 pytestmark = pytest.mark.timing
@@ -284,8 +285,8 @@ def test_rate_tuner_retunes_a_running_node(rt):
     tuner = RateTuner("/talker", "chatter", rt=rt)
     assert tuner.get_rate() == 4.0
     assert tuner.set_rate(12.0).successful
-    measured = tuner.measure(1.0)
-    assert 8.0 < measured < 16.0, measured
+    assert_timing("after set_rate(12.0) the talker publishes at 8 to 16 Hz", lambda: tuner.measure(1.0),
+                  lambda hz: 8.0 < hz < 16.0, show=lambda hz: f"{hz:.1f} Hz")
     refused = tuner.set_rate(500.0)
     assert not refused.successful and "out of range" in refused.reason
     assert tuner.get_rate() == 12.0
@@ -317,7 +318,8 @@ def test_rate_tuner_widget_draws_outside_the_executor_and_stops_with_its_node(rt
         draw()
 
     monkeypatch.setattr(tuner, "_refresh_widgets", noting_the_thread)
-    assert 7.0 < tuner.measure(2.0) < 13.0  # the talker keeps its rate while the plot is redrawn
+    assert_timing("the talker keeps its 10 Hz (7 to 13 Hz) while the plot is redrawn",
+                  lambda: tuner.measure(2.0), lambda hz: 7.0 < hz < 13.0, show=lambda hz: f"{hz:.1f} Hz")
     # the redraws (one a second) ran in the drawing thread, never in the executor thread that runs the
     # talker's timer (an event, not a time: true however slow the drawing is)
     assert drawn_in and set(drawn_in) == {"rate-tuner-plot"}, drawn_in

@@ -16,6 +16,8 @@ from course_helpers import CourseError
 from course_helpers.chapters import ch07_dds as dds
 from course_helpers.chapters.ch07_dds.discovery import DiscoveryTiming
 from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S
+from course_helpers.core.verdict import reusing
+from tests.timing import assert_timing
 
 # measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
 pytestmark = pytest.mark.timing
@@ -30,8 +32,13 @@ def test_discovery_comparison_uses_two_own_domains_and_bounds_the_tuned_wait(rt)
     for setting in dds.SETTINGS:
         assert len(comparison.timings[setting]) == 3 and comparison.missed(setting) == 0
         assert all(t.create_node_s > 0 for t in comparison.timings[setting])
-    assert max(comparison.seconds("course")) < 1.0  # bounded by the 0.1 s period, plus load
-    assert max(comparison.seconds("Fast DDS default")) < 2 * DEFAULT_ANNOUNCEMENT_S
+    default_bound_s = 2 * DEFAULT_ANNOUNCEMENT_S  # two of Fast DDS's periods; the course's: 0.1 s, so 1 s
+    assert_timing(
+        f"the course's setting finds the anchor within 1 s, Fast DDS's within {default_bound_s:g} s",
+        reusing(comparison, lambda: dds.compare_discovery(rt, repeats=3)),
+        lambda c: max(c.seconds("course")) < 1.0 and max(c.seconds("Fast DDS default")) < default_bound_s,
+        show=lambda c: f"slowest: course {max(c.seconds('course')):.2f} s, "
+                       f"Fast DDS {max(c.seconds('Fast DDS default')):.2f} s")
     domains = dds.discovery_settings._comparison_domains()
     assert len(set(domains)) == 2 and rt.domain.domain_id not in domains
     assert dds.discovery_settings._comparison_domains() == domains  # re-running reuses them

@@ -409,7 +409,7 @@ def test_a_window_goes_on_until_it_holds_gaps_to_measure(rt):
     rt.add(SlowStampedSource)
     delivery = cp.measure_delivery(rt, "/slow_stamped", seconds=1.0, expected_hz=30.0)
     assert delivery.received >= 3 and len(delivery.gap_frames) >= 2, delivery  # two gaps, not none
-    assert 1.0 < delivery.seconds < 1.0 + 10.0
+    assert delivery.seconds >= 1.0  # the window is never shorter than asked for
     assert_timing("a 0.6 s source shows gaps of about 18 frames of a 30 Hz camera",
                   lambda: cp.measure_delivery(rt, "/slow_stamped", seconds=1.0, expected_hz=30.0),
                   lambda d: 0.6 * 30 * 0.8 < d.median_gap_frames < 0.6 * 30 * 1.25)
