@@ -122,3 +122,40 @@ def test_the_discovery_server_profile_keeps_it_a_server_with_its_lease(tmp_path)
     lease = config.find("f:leaseDuration", ns)
     found = (lease.findtext("f:sec", namespaces=ns), lease.findtext("f:nanosec", namespaces=ns))
     assert found == ("1", "500000000")
+
+
+LATE_START = """
+import os, sys
+os.environ.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+import rclpy
+from rclpy.context import Context
+from course_helpers.core.dds_config import profile_comes_too_late
+from course_helpers.core.runtime import CourseRuntime
+print("before any participant:", profile_comes_too_late())
+if sys.argv[1] == "early":
+    early = Context()
+    rclpy.init(context=early, domain_id=int(os.environ["ROS_DOMAIN_ID"]))
+    node = rclpy.create_node("students_own", context=early)  # kept: its participant lives while it does
+rt = CourseRuntime().start()
+rt.stop()
+"""
+
+
+@pytest.mark.parametrize("first", ["early", "course"])
+def test_a_participant_made_before_the_course_is_named_in_one_line(first, tmp_path):
+    """Fast DDS reads the profile once per process, at its first participant: a participant made before
+    the course's runtime means the course's profile cannot apply, and the runtime says so (and only then)."""
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "late.py"
+    script.write_text(LATE_START)
+    env = {**os.environ, "ROS_DOMAIN_ID": os.environ.get("ROS_DOMAIN_ID") or "77"}
+    done = subprocess.run([sys.executable, str(script), first], capture_output=True, text=True, timeout=60,
+                          env=env)
+    out = done.stdout
+    assert done.returncode == 0, done.stderr
+    assert "before any participant: False" in out, out
+    assert (dds_config.LATE_PROFILE in out) == (first == "early"), out

@@ -267,8 +267,10 @@ def _node_in_domain(domain: int, name: str, timeout: float) -> bool:
     import rclpy
     from rclpy.context import Context
 
-    from course_helpers.core.dds_config import init_context
+    from course_helpers.core import processes
+    from course_helpers.core.dds_config import apply_course_discovery, init_context
 
+    apply_course_discovery(processes.log_dir())  # as the runtime would: this process's first participant
     context = Context()
     init_context(context, domain)
     try:

@@ -70,7 +70,8 @@ import threading
 from contextlib import contextmanager
 
 from course_helpers.core.errors import CourseError
-from course_helpers.core.udp_sockets import discovery_port
+from course_helpers.core.mapped_files import shm_files
+from course_helpers.core.udp_sockets import discovery_port, udp_sockets
 
 PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
@@ -240,6 +241,23 @@ def apply_course_discovery(directory: str) -> str:
         else:
             os.environ[PROFILE_ENV] = write_profile(directory, TIMING_PROFILE, profile_xml(()))
     return os.environ[PROFILE_ENV]
+
+
+RTPS_PORTS = (7400, 32768)  # the ports of RTPS domains (7400 + 250 per domain), below the OS's own
+LATE_PROFILE = ("note: this process made a DDS participant (rclpy.init() and a node) before the course "
+                "started ROS, and Fast DDS reads its settings only once, so the course's discovery profile "
+                "does not apply in this kernel: nodes of other processes may take seconds to show. Restart "
+                "the kernel and run the chapter's first cell before your own rclpy.init().")
+
+
+def profile_comes_too_late() -> bool:
+    """Whether the course's profile would come too late for this process: no profile is set yet, and a
+    participant already exists here (Fast DDS's shared memory is mapped, or a UDP socket is bound in
+    the RTPS port range). Fast DDS 2.14 reads ``FASTRTPS_DEFAULT_PROFILES_FILE`` once per process, when
+    the first participant is made (``DomainParticipantFactory::load_profiles``); children still get it."""
+    if os.environ.get(PROFILE_ENV):
+        return False
+    return bool(shm_files()) or any(RTPS_PORTS[0] <= port < RTPS_PORTS[1] for _, port in udp_sockets())
 
 
 @contextmanager

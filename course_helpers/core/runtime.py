@@ -34,7 +34,12 @@ from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_opti
 
 from course_helpers.core import console as _console
 from course_helpers.core import processes
-from course_helpers.core.dds_config import apply_course_discovery, init_context
+from course_helpers.core.dds_config import (
+    LATE_PROFILE,
+    apply_course_discovery,
+    init_context,
+    profile_comes_too_late,
+)
 from course_helpers.core.domains import DomainChoice, choose_domain
 from course_helpers.core.errors import CourseError
 from course_helpers.core.executors import (
@@ -118,6 +123,8 @@ class CourseRuntime(NotebookWaits):
                 self._heal()
                 return self
             self.domain = choose_domain()
+            if profile_comes_too_late():
+                print(LATE_PROFILE, flush=True)
             apply_course_discovery(processes.log_dir())  # before the first participant exists
             self.context = Context()
             args = ["--ros-args", "--disable-stdout-logs"] if self._in_kernel else None
