@@ -110,6 +110,13 @@ STARTS = "the executable starts"  # see EXEMPT
 MODULE = f"{PACKAGE}/heartbeat.py"
 
 
+def _criterion(report, name: str):
+    """The criterion ``name`` of ``report``; a report without it fails the test with the whole report."""
+    found = [c for c in report.criteria if c.name == name]
+    assert len(found) == 1, f"no criterion {name!r} in:\n{report.summary()}"
+    return found[0]
+
+
 def _failed(report) -> set[str]:
     return {c.name for c in report.criteria if not c.passed}
 
@@ -177,7 +184,7 @@ def test_a_dependency_declared_as_depend_counts_and_a_missing_one_is_named(rt):
     no_rclpy = _changed("package.xml", "  <exec_depend>rclpy</exec_depend>\n", "")  # std_msgs lacks it
     report = check_package(no_rclpy(reference_package()))
     assert _failed(report) == {DEPENDS}, report.summary()
-    [depends] = [c for c in report.criteria if c.name == DEPENDS]
+    depends = _criterion(report, DEPENDS)
     assert "where only std_msgs and what it needs" in depends.detail, depends.detail
     assert "No module named 'rclpy'" in depends.detail and "rclpy" not in depends.hint
 
@@ -202,8 +209,7 @@ def test_package_checker_fails_each_criterion_on_a_wrong_package(rt, make_wrong_
 def test_an_unclean_ctrl_c_is_shown_with_the_processes_last_words(rt):
     uncaught = _changed(MODULE, "except (KeyboardInterrupt, ExternalShutdownException):",
                         "except ExternalShutdownException:")
-    [stop] = [c for c in check_package(uncaught(reference_package())).criteria
-              if c.name == CTRL_C_CRITERION]
+    stop = _criterion(check_package(uncaught(reference_package())), CTRL_C_CRITERION)
     assert not stop.passed, stop.detail
     assert "its last output:" in stop.detail and "KeyboardInterrupt" in stop.detail, stop.detail
 
@@ -246,27 +252,28 @@ MAIN_BODY = ("rclpy.init(args=args)\n    node = Heartbeat()\n    try:\n        r
 def test_rclpy_shutdown_race_on_ctrl_c_is_forgiven_and_nothing_else_is(rt):
     race = check_package(_spins_on_after_shutdown("pass  # the next spin_once makes a wait set")(
         reference_package()))
-    [stop] = [c for c in race.criteria if c.name == CTRL_C_CRITERION]
+    stop = _criterion(race, CTRL_C_CRITERION)
     assert stop.passed and "rclpy's own shutdown race" in stop.detail, stop.detail
     assert race.passed, race.summary()
     other = check_package(_spins_on_after_shutdown(
         f"raise RuntimeError({SHUTDOWN_RACE!r})")(  # the same words, raised by the program
         reference_package()))
-    [stop] = [c for c in other.criteria if c.name == CTRL_C_CRITERION]
+    stop = _criterion(other, CTRL_C_CRITERION)
     assert not stop.passed and "exit code 1" in stop.detail and "RuntimeError" in stop.detail, stop.detail
 
 
 def test_package_checker_hint_tells_a_missing_entry_point_from_a_wrong_setup_cfg(rt):
     for make_wrong_files, hint in ((NO_ENTRY_POINT, "console_scripts"), (SCRIPTS_IN_BIN, "install_scripts")):
         failed = [c for c in check_package(make_wrong_files(reference_package())).criteria if not c.passed]
-        assert failed[0].name == FINDS and hint in failed[0].hint
+        assert failed[0].name == FINDS and hint in failed[0].hint, failed
 
 
 def test_package_checker_refuses_to_run_beside_the_notebooks_own_node(rt):
     # The notebook's own /heartbeat node would fake a pass: the checker refuses to run then.
     rt.add(Talker, name="heartbeat", topic="heartbeat", console=False)
     report = check_package(reference_package())
-    assert _failed(report) == {NOT_ALONE} and "already in the graph" in report.criteria[-1].detail
+    assert _failed(report) == {NOT_ALONE} and "already in the graph" in report.criteria[-1].detail, \
+        report.summary()
     rt.remove("/heartbeat")
 
 
