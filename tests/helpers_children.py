@@ -92,3 +92,15 @@ def report_when_it_sees(name: str) -> None:
                              f"this child to see {name}")
     report("seen", name=name)
     time.sleep(300)
+
+
+def hold_a_bare_node(name: str) -> None:
+    """A procedure: a node ``name`` without a single endpoint in this process's runtime (what rmw lists
+    for a ghost: a name and nothing live), report 'ready', then wait to be stopped."""
+    from course_helpers.core.node_hook import bare_node
+    from course_helpers.core.runtime import get_runtime
+
+    node = bare_node(get_runtime().context, name)
+    report("ready", name=name)
+    time.sleep(300)  # stays until stopped: node is kept alive meanwhile
+    node.destroy_when_not_in_use()

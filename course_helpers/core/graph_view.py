@@ -19,7 +19,7 @@ from rclpy.node import Node
 
 from course_helpers.core.dds_config import DEFAULT_ANNOUNCEMENT_S
 from course_helpers.core.graph_events import GraphWatcher
-from course_helpers.core.names import node_full_names, split_full_name
+from course_helpers.core.names import full_name, node_full_names
 from course_helpers.core.node_hook import outside_builds
 from course_helpers.core.waiting import UNNOTIFIED_PERIOD_S
 
@@ -27,6 +27,9 @@ INTERNAL_NODE = "_course_runtime"  # hidden (leading underscore), like ros2cli's
 # A new participant may learn of an older one only at its next periodic announcement (every 3 s
 # outside the course): by this long after the start, the graph shows what was already running.
 GRAPH_SETTLE_S = DEFAULT_ANNOUNCEMENT_S + 0.3
+# rmw's DDS topic prefixes: which of a node's four lists an endpoint belongs to if it writes, if it reads,
+# and the suffix the service's name carries (0 publishers, 1 subscriptions, 2 services, 3 clients)
+_ROS_TOPIC_KINDS = {"rt/": (0, 1, ""), "rq/": (3, 2, "Request"), "rr/": (2, 3, "Reply")}
 WATCHED_PERIOD_S = 1.0  # s; with a watcher, a graph wait still looks this often, and answers are
 # kept no longer (a lost event costs no more)
 
@@ -98,29 +101,53 @@ class GraphView:
 
         A node listed without a single endpoint is left out. rclpy gives every node at least its
         ``/parameter_events`` publisher, so such an entry is either a node still being created or
-        one that rmw keeps listing after its process has left (see :mod:`.child` on the goodbye
-        that overtakes a node's last graph update).
+        a ghost: one that rmw keeps listing after its process has left (see :mod:`.child` on the
+        goodbye that overtakes a node's last graph update, and :meth:`endpoints`).
         """
         def compute() -> list[str]:
             names = node_full_names(self.node.get_node_names_and_namespaces(), include_hidden)
-            return [fqn for fqn in names if any(self.entry(fqn))]
+            owners = self.endpoints()
+            return [fqn for fqn in names if fqn in owners]
 
         return list(self._cached(("nodes", include_hidden), compute))
 
     def entry(self, fqn: str) -> tuple:
-        """What the graph lists for node ``fqn``: its publishers, subscriptions, services and clients."""
-        def compute() -> tuple:
-            namespace, name = split_full_name(fqn)
-            try:
-                return tuple(sorted(map(str, call(name, namespace))) for call in (
-                    self.node.get_publisher_names_and_types_by_node,
-                    self.node.get_subscriber_names_and_types_by_node,
-                    self.node.get_service_names_and_types_by_node,
-                    self.node.get_client_names_and_types_by_node))
-            except Exception:  # the node left meanwhile: nothing to settle
-                return ()
+        """What the graph lists for node ``fqn``: its publishers, subscriptions, services and clients,
+        each a sorted tuple of ``'name type'`` (all four empty for a node without live endpoints)."""
+        return self.endpoints().get(fqn, ((), (), (), ()))
 
-        return self._cached(("entry", fqn), compute)
+    def endpoints(self) -> dict[str, tuple]:
+        """Node full name -> its live publishers, subscriptions, services and clients (see :meth:`entry`).
+
+        Read endpoint by endpoint, topic by topic, not with rcl's queries by node name. rmw_dds_common's
+        graph cache answers those from the first node of that name it finds (``__find_node``), so a
+        ghost of a node that left, listed under the same name, would hide the live node's endpoints: a
+        package run again after Ctrl+C would never seem to appear. A ghost has no live endpoint, so it
+        owns nothing here. Services are the request and reply topics rmw makes for them (``rq/``,
+        ``rr/``).
+        """
+        def compute() -> dict[str, tuple]:
+            found: dict[str, tuple[set, set, set, set]] = {}
+            for raw, _types in self.node.get_topic_names_and_types(no_demangle=True):
+                kind = _ROS_TOPIC_KINDS.get(raw[:3])
+                if kind is None:  # a DDS topic of rmw's own (ros_discovery_info)
+                    continue
+                name = "/" + raw[3:].removesuffix(kind[2])
+                writers = self.node.get_publishers_info_by_topic(raw, no_mangle=True)
+                readers = self.node.get_subscriptions_info_by_topic(raw, no_mangle=True)
+                for writes, infos in ((True, writers), (False, readers)):
+                    for info in infos:
+                        if info.node_name.startswith("_NODE_"):  # an endpoint whose node rmw does not know
+                            continue
+                        fqn = full_name(info.node_namespace, info.node_name)
+                        sets = found.setdefault(fqn, (set(), set(), set(), set()))
+                        sets[kind[0] if writes else kind[1]].add(f"{name} {info.topic_type}")
+            return {fqn: tuple(tuple(sorted(group)) for group in sets) for fqn, sets in found.items()}
+
+        try:
+            return self._cached(("endpoints",), compute)
+        except Exception:  # the context went down meanwhile: nothing is live
+            return {}
 
     def whereabouts(self, fqn: str) -> str:
         """What the graph says of node ``fqn`` right now, in words, for the message of a wait that ran out:
