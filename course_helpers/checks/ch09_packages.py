@@ -199,7 +199,7 @@ def rclpy_shutdown_race(lines: list[str]) -> bool:
     """Whether a process's output ends with rclpy's shutdown race: an RCLError refusing a context
     already shut down, raised where the executor makes its wait set (the traceback's last frame)."""
     frames = [line.strip() for line in lines if line.strip().startswith('File "')]
-    if not lines or not frames or SHUTDOWN_RACE not in lines[-1]:
+    if not frames or SHUTDOWN_RACE not in lines[-1]:  # frames: there are lines
         return False
     return WAIT_SET_FRAME.match(frames[-1]) is not None
 

@@ -71,7 +71,7 @@ from contextlib import contextmanager
 
 from course_helpers.core.errors import CourseError
 from course_helpers.core.mapped_files import shm_files
-from course_helpers.core.udp_sockets import discovery_port, udp_sockets
+from course_helpers.core.udp_sockets import RTPS_PORTS, discovery_port, udp_sockets
 
 PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
@@ -243,7 +243,6 @@ def apply_course_discovery(directory: str) -> str:
     return os.environ[PROFILE_ENV]
 
 
-RTPS_PORTS = (7400, 32768)  # the ports of RTPS domains (7400 + 250 per domain), below the OS's own
 LATE_PROFILE = ("note: this process made a DDS participant (rclpy.init() and a node) before the course "
                 "started ROS, and Fast DDS reads its settings only once, so the course's discovery profile "
                 "does not apply in this kernel: nodes of other processes may take seconds to show. Restart "

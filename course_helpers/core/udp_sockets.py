@@ -44,6 +44,7 @@ def reachable_from_network(sockets: list[tuple[str, int]]) -> list[tuple[str, in
 # first free one from its port base minus 400 up to the base (RTPSParticipantImpl.cpp), in any domain.
 # So each participant that rmw_fastrtps creates holds one UDP port in this range.
 GRAPH_PORTS = (7400 - 400, 7400)
+RTPS_PORTS = (7400, 32768)  # the ports of RTPS domains (7400 + 250 per domain), below the OS's own
 
 
 def discovery_port(domain: int, participant_id: int) -> int:
