@@ -285,3 +285,15 @@ def test_a_run_that_ends_with_samples_in_flight_says_so_first(rt, monkeypatch):
         assert f"NOT FINISHED: {result.in_flight} in flight, not lost" in texts
     finally:
         lab.close()
+
+
+def test_a_setting_moved_during_a_run_is_announced_when_the_run_ends(rt):
+    lab = qos_lab()
+    try:
+        lab.start([ExperimentConfig(reliability="best_effort", rate_hz=100, duration_s=0.5)])
+        lab.rate.value = 2000  # while the run goes (the status line counts the run meanwhile)
+        assert lab.wait(60)
+        assert "Ready: " in lab.status.value and "2000 Hz x 1 KiB" in lab.status.value, lab.status.value
+        assert not lab.run_button.disabled
+    finally:
+        lab.close()

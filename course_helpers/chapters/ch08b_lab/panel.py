@@ -71,6 +71,7 @@ class QoSLab:
         self.draw_cpu_seconds = 0.0  # CPU time the frames of the last start() took to draw
         self._thread: threading.Thread | None = None
         self._busy = False
+        self._changed_while_busy = False  # a setting moved during a run: announced when it ends
         self._stop = threading.Event()
         self._figure = ResultsFigure()
         self._last_frame = 0.0
@@ -261,6 +262,8 @@ class QoSLab:
         self.run_button.disabled = busy
         self.compare_button.disabled = busy or self.config_b is None
         self.keep_b_button.disabled = False
+        if announce and busy:
+            self._changed_while_busy = True
         if announce and not busy:
             self._set_status(f"Ready: {html.escape(config.describe())} "
                              f"({config.count} samples).", "info", escape=False)
@@ -420,7 +423,8 @@ class QoSLab:
             self.stop_button.disabled = True
             for button in self.preset_buttons:
                 button.disabled = button.tooltip in self._link_presets  # the lossy link is unavailable
-            self._validate()
+            changed, self._changed_while_busy = self._changed_while_busy, False
+            self._validate(announce=changed)  # the panel's new settings replace the run's summary
 
     def close(self) -> None:
         """Stop a running experiment (its child process ends) and close the widgets."""
