@@ -15,13 +15,13 @@ from rclpy.qos import QoSProfile
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.names import as_full_name
 from course_helpers.core.validation import check_depth, check_topic_name, interface_name, resolve_interface
-from course_helpers.core.waiting import poll_until, wait_for_future, wait_until
+from course_helpers.core.waiting import HANG_S, poll_until, wait_for_future, wait_until
 
 
 class NotebookWaits:
     """The runtime's waits (mixed into CourseRuntime)."""
 
-    def call_in_executor(self, function: Callable, *args, timeout: float = 5.0):
+    def call_in_executor(self, function: Callable, *args, timeout: float = HANG_S):
         """Run ``function(*args)`` in the executor thread and return its result.
 
         Called from the executor thread itself (from a callback), it runs the function directly.
@@ -42,10 +42,12 @@ class NotebookWaits:
 
     wait_for_future = staticmethod(wait_for_future)
 
-    def wait_until(self, predicate: Callable[[], object], timeout: float = 5.0,
+    def wait_until(self, predicate: Callable[[], object], timeout: float = HANG_S,
                    what: str = "the condition") -> bool:
         """Wait until ``predicate()`` is true; if not, raise :class:`WaitTimeout` naming ``what``
-        and the nodes the graph lists at that moment (what is there when something is not).
+        and the nodes the graph lists at that moment (what is there when something is not). The
+        default ``timeout`` only ends a hang (:data:`.waiting.HANG_S`): pass a short one only where
+        timing out is the outcome a cell shows.
 
         The wait wakes on graph changes, child reports and this kernel's callbacks, and looks every
         20 ms besides (:mod:`.waiting`)."""
@@ -59,7 +61,7 @@ class NotebookWaits:
         """Wait until ``predicate()`` is true; False (not an error) if ``timeout`` passes first."""
         return poll_until(predicate, timeout)
 
-    def wait_for_messages(self, topic: str, msg_type, count: int = 1, timeout: float = 5.0,
+    def wait_for_messages(self, topic: str, msg_type, count: int = 1, timeout: float = HANG_S,
                           qos: QoSProfile | int = 10) -> list:
         """Subscribe to ``topic``, return the first ``count`` messages, then unsubscribe."""
         check_topic_name(topic)
@@ -78,7 +80,7 @@ class NotebookWaits:
             self.call_in_executor(internal.destroy_subscription, sub)
         return received[:count]
 
-    def wait_for_node(self, fqn: str, timeout: float = 10.0) -> None:
+    def wait_for_node(self, fqn: str, timeout: float = HANG_S) -> None:
         """Wait until a node (in any process of this domain) shows up in the ROS graph (woken by the
         graph's changes)."""
         fqn = as_full_name(fqn)

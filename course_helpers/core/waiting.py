@@ -16,6 +16,11 @@ A predicate may also read what reports nothing: a thread of the notebook's own, 
 clock, a DDS match that follows its graph update by a moment. So a wait also checks every
 ``period`` seconds (:data:`UNNOTIFIED_PERIOD_S` unless the caller knows better); between events
 the waiting thread sleeps and costs no CPU, and the executor keeps the GIL.
+
+A wait for what happens for certain (a reply, a matched talker's message, a node that starts) is
+bounded by :data:`HANG_S`: the bound ends a hang and says nothing about speed. A busy machine makes
+such a wait longer, never wrong. How fast something happens is a measurement, judged by
+:mod:`.verdict`.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from course_helpers.core.errors import WaitTimeout
 UNNOTIFIED_PERIOD_S = 0.02  # s; how often a wait looks again when nothing reported a change
 MIN_RECHECK_S = 0.005  # s; at most one check per this long, however fast the events come
 POLL_PERIOD_S = UNNOTIFIED_PERIOD_S  # the name older callers use
+HANG_S = 60.0  # s; the bound on a wait for what happens for certain: it only ends a hang
 
 
 class Changes:
@@ -107,7 +113,7 @@ def wait_until(predicate: Callable[[], object], timeout: float, what: str,
     return True
 
 
-def wait_for_future(future, timeout: float = 5.0, what: str = "the future"):
+def wait_for_future(future, timeout: float = HANG_S, what: str = "the future"):
     """Wait (without spinning) until an rclpy ``future`` is done (its done callback wakes the wait);
     return its result, or raise its exception. Raises :class:`WaitTimeout` naming ``what``."""
     done = threading.Event()
