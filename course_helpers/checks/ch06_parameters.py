@@ -17,7 +17,7 @@ from std_msgs.msg import Float64, String
 
 from course_helpers.chapters.ch06_parameters import NodeLaunch, launch
 from course_helpers.checks import CheckReport, callback_errors_criterion, student_on_clock
-from course_helpers.core.names import split_full_name
+from course_helpers.core.graph_view import endpoints_by_node
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.sim_clock import MATCH_TIMEOUT_S
 from course_helpers.core.waiting import poll_until
@@ -281,14 +281,11 @@ def _check_description(report: CheckReport, entries) -> bool:
 
 
 def _string_topics(probe: Node, fqn: str, publishers: bool) -> set[str]:
-    """The std_msgs/String topics that node ``fqn`` publishes (or subscribes to), as the graph lists them."""
-    namespace, name = split_full_name(fqn)
-    query = (probe.get_publisher_names_and_types_by_node if publishers
-             else probe.get_subscriber_names_and_types_by_node)
-    try:
-        return {topic for topic, types in query(name, namespace) if "std_msgs/msg/String" in types}
-    except Exception:  # rclpy's NodeNameNonExistentError: not (or no longer) in the graph
-        return set()
+    """The std_msgs/String topics that node ``fqn`` publishes (or subscribes to), as the graph lists them
+    (endpoint by endpoint: a node of the same name that a stopped launch left behind hides nothing)."""
+    entry = endpoints_by_node(probe).get(fqn, ((), (), (), ()))
+    group = entry[0] if publishers else entry[1]
+    return {endpoint.split(" ")[0] for endpoint in group if endpoint.endswith(" std_msgs/msg/String")}
 
 
 def _check_they_talk(report: CheckReport, probe: Node, counter) -> None:

@@ -117,35 +117,10 @@ class GraphView:
         return self.endpoints().get(fqn, ((), (), (), ()))
 
     def endpoints(self) -> dict[str, tuple]:
-        """Node full name -> its live publishers, subscriptions, services and clients (see :meth:`entry`).
-
-        Read endpoint by endpoint, topic by topic, not with rcl's queries by node name. rmw_dds_common's
-        graph cache answers those from the first node of that name it finds (``__find_node``), so a
-        ghost of a node that left, listed under the same name, would hide the live node's endpoints: a
-        package run again after Ctrl+C would never seem to appear. A ghost has no live endpoint, so it
-        owns nothing here. Services are the request and reply topics rmw makes for them (``rq/``,
-        ``rr/``).
-        """
-        def compute() -> dict[str, tuple]:
-            found: dict[str, tuple[set, set, set, set]] = {}
-            for raw, _types in self.node.get_topic_names_and_types(no_demangle=True):
-                kind = _ROS_TOPIC_KINDS.get(raw[:3])
-                if kind is None:  # a DDS topic of rmw's own (ros_discovery_info)
-                    continue
-                name = "/" + raw[3:].removesuffix(kind[2])
-                writers = self.node.get_publishers_info_by_topic(raw, no_mangle=True)
-                readers = self.node.get_subscriptions_info_by_topic(raw, no_mangle=True)
-                for writes, infos in ((True, writers), (False, readers)):
-                    for info in infos:
-                        if info.node_name.startswith("_NODE_"):  # an endpoint whose node rmw does not know
-                            continue
-                        fqn = full_name(info.node_namespace, info.node_name)
-                        sets = found.setdefault(fqn, (set(), set(), set(), set()))
-                        sets[kind[0] if writes else kind[1]].add(f"{name} {info.topic_type}")
-            return {fqn: tuple(tuple(sorted(group)) for group in sets) for fqn, sets in found.items()}
-
+        """Node full name -> its live publishers, subscriptions, services and clients (see :meth:`entry`
+        and :func:`endpoints_by_node`), kept until the graph changes."""
         try:
-            return self._cached(("endpoints",), compute)
+            return self._cached(("endpoints",), lambda: endpoints_by_node(self.node))
         except Exception:  # the context went down meanwhile: nothing is live
             return {}
 
@@ -166,3 +141,44 @@ class GraphView:
             self.node.destroy_node()
         except Exception:  # the context is gone already
             pass
+
+
+def endpoints_by_node(node: Node) -> dict[str, tuple]:
+    """Node full name -> its live publishers, subscriptions, services and clients, as ``node`` sees the
+    graph: four sorted tuples of ``'name type'``.
+
+    Read endpoint by endpoint, topic by topic, not with rcl's queries by node name. rmw_dds_common's
+    graph cache answers those from the first node of that name it finds (``__find_node``), so a ghost
+    of a node that left, listed under the same name, would hide the live node's endpoints: a package
+    run again after Ctrl+C would never seem to appear. A ghost has no live endpoint, so it owns
+    nothing here. Services are the request and reply topics rmw makes for them (``rq/``, ``rr/``); each
+    is listed once, with the service's type as ``ros2 service list -t`` spells it.
+    """
+    found: dict[str, tuple[set, set, set, set]] = {}
+    for raw, _types in node.get_topic_names_and_types(no_demangle=True):
+        kind = _ROS_TOPIC_KINDS.get(raw[:3])
+        if kind is None:  # a DDS topic of rmw's own (ros_discovery_info)
+            continue
+        name = "/" + raw[3:].removesuffix(kind[2])
+        writers = node.get_publishers_info_by_topic(raw, no_mangle=True)
+        readers = node.get_subscriptions_info_by_topic(raw, no_mangle=True)
+        for writes, infos in ((True, writers), (False, readers)):
+            for info in infos:
+                if info.node_name.startswith("_NODE_"):  # an endpoint whose node rmw does not know
+                    continue
+                fqn = full_name(info.node_namespace, info.node_name)
+                sets = found.setdefault(fqn, (set(), set(), set(), set()))
+                sets[kind[0] if writes else kind[1]].add(f"{name} {_ros_type(info.topic_type, kind[2])}")
+    return {fqn: tuple(tuple(sorted(group)) for group in sets) for fqn, sets in found.items()}
+
+
+def _ros_type(dds_type: str, service: str) -> str:
+    """A DDS type name as ROS spells it: ``std_msgs::msg::dds_::String_`` -> ``std_msgs/msg/String``;
+    a service's request or reply type (``service`` is 'Request' or 'Reply') -> the service's type."""
+    parts = dds_type.split("::")
+    if len(parts) != 4 or parts[2] != "dds_":
+        return dds_type
+    name = parts[3].removesuffix("_")
+    if service:
+        name = name.removesuffix("_Request").removesuffix("_Response")
+    return f"{parts[0]}/{parts[1]}/{name}"
