@@ -198,7 +198,7 @@ CHAPTER_AGAIN = """from course_helpers.nodes import Relay
 listener = rt.add(Listener)
 talker = rt.add(Talker)
 rt.spawn('relay', Relay, wait_for='/relay')
-rt.wait_until(lambda: len(listener.heard) >= 3, timeout=10, what='three messages')
+rt.wait_until(lambda: len(listener.heard) >= 3, what='three messages')
 print('domain', rt.domain.domain_id)"""
 STATE = """print('nodes', rt.nodes())
 print('children', sorted((name, child.pid, child.alive) for name, child in rt.children().items()))"""
@@ -249,7 +249,7 @@ def _textbook_spin_and_interrupt(page, server_tree) -> None:
     page.screenshot(path=artifact("first_session_interrupt.png"))
 
     # The next course cell: 00's own (talker, listener, three messages heard), with no healing notice.
-    course = notebook.locator(".jp-CodeCell").filter(has_text="timeout=5, what='three messages'").first
+    course = notebook.locator(".jp-CodeCell").filter(has_text="rt.wait_until(lambda: len(listener.heard) >= 3, what=").first
     out = outputs(run_cell(page, notebook, course))
     assert re.search(r"\['hello \d+', 'hello \d+', 'hello \d+'\]", out) and "[course]" not in out, out
     assert red_outputs(page) == outputs(spin).strip().splitlines()  # the interrupt's line, nothing else
