@@ -17,7 +17,7 @@ from std_msgs.msg import Float64, String
 
 from course_helpers.chapters.ch06_parameters import NodeLaunch, launch
 from course_helpers.checks import CheckReport, callback_errors_criterion, student_on_clock
-from course_helpers.core.graph_view import endpoints_by_node
+from course_helpers.core.graph_view import NO_ENDPOINTS, endpoints_by_node
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.sim_clock import MATCH_TIMEOUT_S
 from course_helpers.core.waiting import poll_until
@@ -283,7 +283,7 @@ def _check_description(report: CheckReport, entries) -> bool:
 def _string_topics(probe: Node, fqn: str, publishers: bool) -> set[str]:
     """The std_msgs/String topics that node ``fqn`` publishes (or subscribes to), as the graph lists them
     (endpoint by endpoint: a node of the same name that a stopped launch left behind hides nothing)."""
-    entry = endpoints_by_node(probe).get(fqn, ((), (), (), ()))
+    entry = endpoints_by_node(probe).get(fqn, NO_ENDPOINTS)
     group = entry[0] if publishers else entry[1]
     return {endpoint.split(" ")[0] for endpoint in group if endpoint.endswith(" std_msgs/msg/String")}
 

@@ -30,6 +30,7 @@ GRAPH_SETTLE_S = DEFAULT_ANNOUNCEMENT_S + 0.3
 # rmw's DDS topic prefixes: which of a node's four lists an endpoint belongs to if it writes, if it reads,
 # and the suffix the service's name carries (0 publishers, 1 subscriptions, 2 services, 3 clients)
 _ROS_TOPIC_KINDS = {"rt/": (0, 1, ""), "rq/": (3, 2, "Request"), "rr/": (2, 3, "Reply")}
+NO_ENDPOINTS = ((), (), (), ())  # the entry of a node the graph lists nothing live for
 WATCHED_PERIOD_S = 1.0  # s; with a watcher, a graph wait still looks this often, and answers are
 # kept no longer (a lost event costs no more)
 
@@ -114,7 +115,7 @@ class GraphView:
     def entry(self, fqn: str) -> tuple:
         """What the graph lists for node ``fqn``: its publishers, subscriptions, services and clients,
         each a sorted tuple of ``'name type'`` (all four empty for a node without live endpoints)."""
-        return self.endpoints().get(fqn, ((), (), (), ()))
+        return self.endpoints().get(fqn, NO_ENDPOINTS)
 
     def endpoints(self) -> dict[str, tuple]:
         """Node full name -> its live publishers, subscriptions, services and clients (see :meth:`entry`
