@@ -249,7 +249,8 @@ def _textbook_spin_and_interrupt(page, server_tree) -> None:
     page.screenshot(path=artifact("first_session_interrupt.png"))
 
     # The next course cell: 00's own (talker, listener, three messages heard), with no healing notice.
-    course = notebook.locator(".jp-CodeCell").filter(has_text="rt.wait_until(lambda: len(listener.heard) >= 3, what=").first
+    cell_text = "rt.wait_until(lambda: len(listener.heard) >= 3, what="
+    course = notebook.locator(".jp-CodeCell").filter(has_text=cell_text).first
     out = outputs(run_cell(page, notebook, course))
     assert re.search(r"\['hello \d+', 'hello \d+', 'hello \d+'\]", out) and "[course]" not in out, out
     assert red_outputs(page) == outputs(spin).strip().splitlines()  # the interrupt's line, nothing else
