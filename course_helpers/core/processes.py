@@ -32,13 +32,12 @@ import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future
 
-from course_helpers.core import port_slots
+from course_helpers.core import port_slots, scratch_dirs
 from course_helpers.core.channel import CHANNEL_ENV, ChannelReader
 from course_helpers.core.dds_config import environment_snapshot
 from course_helpers.core.errors import CourseError
@@ -289,10 +288,10 @@ _launcher = _Launcher()
 
 
 def log_dir() -> str:
-    """This process's folder for child logs (removed at exit)."""
+    """This process's folder for child logs (removed at exit; swept by the next one if killed)."""
     with _lock:
         if not _log_dir:
-            _log_dir.append(tempfile.mkdtemp(prefix="ros2-course-"))
+            _log_dir.append(scratch_dirs.private_dir("ros2-course"))
         return _log_dir[0]
 
 

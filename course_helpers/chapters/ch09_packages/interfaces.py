@@ -21,7 +21,6 @@ import os
 import re
 import shutil
 import sys
-import tempfile
 import textwrap
 from collections.abc import Callable
 from pathlib import Path
@@ -34,6 +33,7 @@ from course_helpers.chapters.ch09_packages.package_files import (
     interface_cmakelists,
     interface_package_xml,
 )
+from course_helpers.core import scratch_dirs
 from course_helpers.core.build_interfaces import BuildResult, build_package
 from course_helpers.core.errors import CourseError
 from course_helpers.core.validation import resolve_interface
@@ -61,7 +61,7 @@ def kernel_prefix(package: str) -> Path:
     global _kernel_dir
     check_package_name(package)
     if _kernel_dir is None or not _kernel_dir.is_dir():
-        _kernel_dir = Path(tempfile.mkdtemp(prefix="ch09_interfaces_"))
+        _kernel_dir = Path(scratch_dirs.private_dir("ch09_interfaces"))  # swept if the kernel is killed
         atexit.register(shutil.rmtree, _kernel_dir, True)
     return _kernel_dir / package / "install"
 
