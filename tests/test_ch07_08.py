@@ -17,6 +17,7 @@ from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import (
+    QoSDurabilityPolicy,
     QoSHistoryPolicy,
     QoSLivelinessPolicy,
     QoSProfile,
@@ -191,6 +192,24 @@ def test_compatibility_agrees_with_a_live_pair(rt, pub, sub):
     assert pair.connected == qos.compatible(pub_qos, sub_qos)
     if not pair.connected:
         assert pair.subscription_events and pair.publisher_events
+
+
+@pytest.mark.parametrize("durability, depth, got", [
+    (QoSDurabilityPolicy.TRANSIENT_LOCAL, 3, 3),
+    (QoSDurabilityPolicy.TRANSIENT_LOCAL, 2, 2),  # the publisher kept the last two
+    (QoSDurabilityPolicy.VOLATILE, 3, 0),
+], ids=["transient-local", "transient-local-depth-2", "volatile"])
+def test_a_reliable_late_joiner_gets_what_the_publisher_kept_and_nothing_else(rt, durability, depth, got):
+    profile = QoSProfile(depth=depth, reliability=QoSReliabilityPolicy.RELIABLE, durability=durability)
+    sent = [String(data=f"before {i}") for i in range(3)]
+    assert qos.late_joiner_gets(rt, profile, sent, String(data="sentinel")) == got
+    assert rt.nodes() == []
+
+
+def test_a_best_effort_late_joiner_is_not_judged():
+    with pytest.raises(CourseError, match="only a RELIABLE pair says for certain"):
+        qos.late_joiner_gets(None, QoSProfile(depth=1, reliability=QoSReliabilityPolicy.BEST_EFFORT),
+                             [String()], String(data="sentinel"))
 
 
 def test_qos_dicts_round_trip_and_reject_bad_values():

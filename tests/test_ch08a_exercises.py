@@ -95,6 +95,15 @@ def test_channel_checker_rejects_resending_queueing_latching_and_lossy_choices(r
     assert _failed(report) == EVERYTHING_WRONG, report.summary()
 
 
+def test_channel_checker_gives_a_reliable_volatile_estop_nothing_for_a_late_controller(rt):
+    """The live late joiner, judged with DDS's acknowledgements and a sentinel: no window to wait out."""
+    profiles = {**reference.channel_qos(), "estop": QoSProfile(depth=1, reliability=RELIABLE,
+                                                                durability=VOLATILE)}
+    report = check_channel_qos(profiles, rt)
+    assert _failed(report) == EVERYTHING_WRONG[-2:], report.summary()  # the late joiner; the monitor
+    assert "the late joiner got nothing" in report.summary()
+
+
 def test_channel_checker_measures_the_stale_frames_behind_a_deep_camera_queue(rt):
     profiles = {**reference.channel_qos(), "camera": QoSProfile(depth=30, reliability=BEST_EFFORT)}
     report = check_channel_qos(profiles, rt)

@@ -27,6 +27,7 @@ from course_helpers.chapters.ch08_qos.compatibility import (
     compatibility_report,
     compatible,
     explain_compatibility,
+    late_joiner_gets,
     rclpy_verdict,
     try_pair,
 )

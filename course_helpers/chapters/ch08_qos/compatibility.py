@@ -2,26 +2,35 @@
 
 :func:`explain_compatibility` applies the DDS 'requested vs offered' rule to each policy;
 :func:`rclpy_verdict` asks rclpy's own ``qos_check_compatible``; :func:`try_pair` creates a real
-pair and records what arrived and the incompatible-QoS events at both ends.
+pair and records what arrived and the incompatible-QoS events at both ends; :func:`late_joiner_gets`
+counts what a reliable subscription that joins late gets of what was published before it.
 """
 
 from __future__ import annotations
 
-import time
+import copy
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import QoSCompatibility, QoSProfile, qos_check_compatible, qos_policy_name_from_kind
+from rclpy.qos import (
+    QoSCompatibility,
+    QoSHistoryPolicy,
+    QoSProfile,
+    QoSReliabilityPolicy,
+    qos_check_compatible,
+    qos_policy_name_from_kind,
+)
 from std_msgs.msg import String
 
 from course_helpers.chapters.ch08_qos.cleanup import remove_nodes
+from course_helpers.core.errors import CourseError
 from course_helpers.core.qos_dict import qos_to_dict
-from course_helpers.core.waiting import poll_until
+from course_helpers.core.waiting import HANG_S, poll_until
 
 PAIR_PERIOD_S = 0.05  # s between the live pair's messages
 PAIR_ENOUGH = 3  # messages that prove a live pair connects
-LATE_JOIN_S = 0.3  # s between the publisher's messages and a late joiner's subscription
 AT_LEAST = "the publisher offers at least what is requested"
 
 
@@ -119,9 +128,11 @@ def _policy_of(status) -> str:
 
 
 def try_pair(rt, pub: QoSProfile, sub: QoSProfile, seconds: float = 1.0, topic: str = "qos_pair",
-             msg_type=String, make_message: Callable | None = None,
-             published_before: int | None = None, until_all_stored: bool = False) -> PairResult:
+             msg_type=String, make_message: Callable | None = None) -> PairResult:
     """Create a real publisher (profile ``pub``) and subscription (``sub``) on ``topic``; watch them.
+
+    The publisher sends a message every 50 ms. The watch ends as soon as 3 messages arrived or both
+    ends reported an incompatibility, or after ``seconds`` (for a pair that does neither).
 
     Args:
         rt: the kernel's runtime (both nodes run in it).
@@ -129,12 +140,6 @@ def try_pair(rt, pub: QoSProfile, sub: QoSProfile, seconds: float = 1.0, topic: 
         seconds: the longest watch.
         topic, msg_type: the topic and its message class.
         make_message: builds each message (default ``msg_type()``).
-        published_before: if given, the publisher sends this many messages once, before the
-            subscription exists, and then stays silent (the subscription joins late and is
-            watched for the whole ``seconds``, or, with ``until_all_stored``, until every one of them
-            arrived). Otherwise it publishes every 50 ms and the watch ends as soon as 3 messages
-            arrived or both ends reported an incompatibility. A watch that ends early is no window:
-            ``seconds`` then only bounds a hang.
 
     Returns a :class:`PairResult`.
     """
@@ -146,30 +151,51 @@ def try_pair(rt, pub: QoSProfile, sub: QoSProfile, seconds: float = 1.0, topic: 
     publisher = pub_node.create_publisher(
         msg_type, topic, pub,
         event_callbacks=PublisherEventCallbacks(incompatible_qos=lambda s: pub_events.append(_policy_of(s))))
-    if published_before is None:
-        pub_node.create_timer(PAIR_PERIOD_S, lambda: publisher.publish(make_message()))
-    else:
-        for _ in range(published_before):
-            publisher.publish(make_message())
-        time.sleep(LATE_JOIN_S)  # published well before the subscription exists
+    pub_node.create_timer(PAIR_PERIOD_S, lambda: publisher.publish(make_message()))
     sub_node = rt.node("qos_pair_sub", console=False)
     sub_node.create_subscription(
         msg_type, topic, received.append, sub,
         event_callbacks=SubscriptionEventCallbacks(
             incompatible_qos=lambda s: sub_events.append(_policy_of(s))))
-
-    def settled() -> bool:
-        if pub_events and sub_events:
-            return True
-        if published_before is None:
-            return len(received) >= PAIR_ENOUGH
-        return until_all_stored and len(received) >= published_before
-
     try:
-        poll_until(settled, seconds)
+        poll_until(lambda: bool(pub_events and sub_events) or len(received) >= PAIR_ENOUGH, seconds)
     finally:
         remove_nodes(rt, pub_node, sub_node)
     return PairResult(len(received), sorted(set(pub_events)), sorted(set(sub_events)))
+
+
+def late_joiner_gets(rt, qos: QoSProfile, published: list, sentinel, topic: str = "late_joiner") -> int:
+    """How many of ``published`` the publisher hands a subscription that joins after they were sent.
+
+    Both ends use ``qos``, except that the late joiner queues everything it is handed (KEEP_ALL:
+    history is local to each side and never changes a match), so that its own queue drops none of
+    them before they are counted. Holds by construction, with no window: the subscription joins;
+    once the publisher has matched it, DDS's acknowledgements say the subscription holds everything
+    it will ever get of the earlier messages; then ``sentinel`` (a message unlike those) is sent, and
+    a reliable subscription takes messages in order, so what came before the sentinel is the answer.
+    Only a RELIABLE profile promises that order: a best-effort one raises :class:`CourseError`.
+    """
+    if qos.reliability != QoSReliabilityPolicy.RELIABLE:
+        raise CourseError("only a RELIABLE pair says for certain what a late joiner gets: best effort "
+                          "promises no delivery")
+    received: list = []
+    pub_node = rt.node("late_joiner_pub", console=False)
+    publisher = pub_node.create_publisher(type(sentinel), topic, qos)
+    for message in published:
+        publisher.publish(message)
+    sub_node = rt.node("late_joiner", console=False)
+    queue_all = copy.copy(qos)
+    queue_all.history = QoSHistoryPolicy.KEEP_ALL
+    sub_node.create_subscription(type(sentinel), topic, received.append, queue_all)
+    try:
+        rt.wait_until(lambda: publisher.get_subscription_count() > 0, what="the late joiner to match")
+        if not publisher.wait_for_all_acked(Duration(seconds=HANG_S)):
+            raise CourseError(f"the late joiner acknowledged nothing within {HANG_S:g} s (a hang)")
+        publisher.publish(sentinel)
+        rt.wait_until(lambda: sentinel in received, what="the sentinel at the late joiner")
+    finally:
+        remove_nodes(rt, pub_node, sub_node)
+    return sum(1 for message in received[:received.index(sentinel)] if message != sentinel)
 
 
 def compatibility_report(rt, pub: QoSProfile, sub: QoSProfile, live: bool = True) -> str:
