@@ -92,6 +92,12 @@ def _footprint_steps(rt, contexts: int):
     return watch
 
 
+def _moved(watch, label: str) -> str:
+    """What step ``label`` changed, for a failure's message."""
+    return (f"{label}: opened {watch.opened(label)}, closed {watch.closed(label)}, new participants "
+            f"{watch.new_participants(label)}, gone {watch.gone_participants(label)}")
+
+
 def test_init_creates_no_participant_the_first_node_does_and_the_last_one_ends_it(rt):
     watch = _footprint_steps(rt, contexts=1)
     assert watch.unchanged("init") and not watch.mapped("init")
@@ -105,8 +111,9 @@ def test_init_creates_no_participant_the_first_node_does_and_the_last_one_ends_i
     assert watch.created("first node") == watch.participant("/first") == created
     assert watch.created("init") is None and watch.deleted("first destroyed") is None
     assert created.process == watch.process and created != participant_of(rt, "/_course_runtime")
-    assert watch.unchanged("second node") and watch["second node"].nodes["/second"] == created
-    assert watch.unchanged("first destroyed")
+    assert watch.unchanged("second node"), _moved(watch, "second node")
+    assert watch["second node"].nodes["/second"] == created
+    assert watch.unchanged("first destroyed"), _moved(watch, "first destroyed")
     assert watch.closed("second destroyed") == opened
     assert watch.gone_participants("second destroyed") == [created] == [watch.deleted("second destroyed")]
     assert watch["second destroyed"].participants == watch["before"].participants
