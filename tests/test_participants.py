@@ -9,6 +9,7 @@ completes. The round-trip times themselves are only measured.
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import subprocess
@@ -117,6 +118,24 @@ def test_init_creates_no_participant_the_first_node_does_and_the_last_one_ends_i
     assert watch.closed("second destroyed") == opened
     assert watch.gone_participants("second destroyed") == [created] == [watch.deleted("second destroyed")]
     assert watch["second destroyed"].participants == watch["before"].participants
+
+
+def test_a_dropped_node_that_the_collector_destroys_later_is_not_a_steps_doing(rt):
+    """An earlier cell's node, dropped inside a reference cycle, is the last of its context: Python's cyclic
+    collector destroys it at a moment nobody chose, closing its participant's sockets. (CI run X: 'second
+    node' changed something.) The watch collects before it records, so the collection below is no step's."""
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    cycle = {"node": Node("dropped", context=context)}
+    cycle["self"] = cycle
+    del cycle
+    try:
+        watch = ParticipantWatch(rt)
+        gc.collect()  # the collector runs between two steps, as it may during any allocation
+        watch.step("nothing")
+        assert watch.unchanged("nothing"), _moved(watch, "nothing")
+    finally:
+        rclpy.shutdown(context=context)
 
 
 def test_a_node_in_another_context_brings_a_participant_of_its_own(rt):

@@ -12,10 +12,16 @@ process holds:
   graph learns of a new or departed participant by discovery, a moment later: a step waits until the graph
   lists as many participants of this process as the process holds ``ros_discovery_info`` reader ports
   (7000-7399, one per participant that rmw_fastrtps creates: ``udp_sockets.GRAPH_PORTS``).
+
+A node that an earlier cell dropped while it sat in a reference cycle is destroyed by Python's cyclic
+garbage collector, at whatever allocation triggers it. If it was its context's last node, that deletes a
+participant and closes its sockets in the middle of some later step. So the watch collects garbage before
+its first record and before each step's: a step's record holds what the step itself did.
 """
 
 from __future__ import annotations
 
+import gc
 from dataclasses import dataclass, field
 
 from rclpy.node import Node
@@ -63,6 +69,7 @@ class ParticipantWatch:
         if not isinstance(label, str) or not label or label in self.labels():
             raise CourseError(f"a step needs a label of its own, e.g. 'first node'; got {label!r} "
                               f"(taken: {', '.join(self.labels())})")
+        gc.collect()  # an earlier cell's dropped node is destroyed now, not during a later step
         sockets = frozenset(udp_sockets())
         shm = frozenset(shm_files())
         expected = sum(1 for _address, port in sockets if is_graph_port(port))
