@@ -28,17 +28,21 @@ BOUND_S = 0.5
 RUNS = 10
 
 
-def _course_p90() -> float:
+def _course_times() -> tuple[float, str]:
+    """The p90 of the course set-up's times, and every time, sorted (the verdict's line shows them all:
+    one slow child of ten is within the bound, two are not)."""
     env = {k: v for k, v in os.environ.items() if k != "ROS_DOMAIN_ID"}  # it reserves a domain of its own
     done = subprocess.run([sys.executable, "-m", "benchmarks.discovery_after_crash", "--course-p90-only",
                            "--runs", str(RUNS)], env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
-    return float(done.stdout.split()[-1])
+    *_, times, p90 = done.stdout.strip().splitlines()
+    return float(p90), times
 
 
 def test_a_child_started_after_a_killed_one_is_seen_within_half_a_second():
     verdict, _ = judge_timing(
         f"a child started after a killed one is in the kernel's node list within {BOUND_S} s (p90 of {RUNS})",
-        _course_p90, lambda p90: p90 <= BOUND_S, show=lambda p90: f"p90 {p90:.3f} s")
+        _course_times, lambda measured: measured[0] <= BOUND_S,
+        show=lambda measured: f"p90 {measured[0]:.3f} s (each, in s: {measured[1]})")
     print(verdict.line())
     verdict.raise_unless_passed()
