@@ -41,11 +41,10 @@ RUNS = 10
 def _course_times() -> list[float]:
     """The seconds until the kernel listed each of RUNS children, each started after a killed one."""
     env = {k: v for k, v in os.environ.items() if k != "ROS_DOMAIN_ID"}  # it reserves a domain of its own
-    done = subprocess.run([sys.executable, "-m", "benchmarks.discovery_after_crash", "--course-p90-only",
+    done = subprocess.run([sys.executable, "-m", "benchmarks.discovery_after_crash", "--course-times",
                            "--runs", str(RUNS)], env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
-    *_, times, _p90 = done.stdout.strip().splitlines()
-    return [float(value) for value in times.split()]
+    return [float(value) for value in done.stdout.strip().splitlines()[-1].split()]
 
 
 def test_a_child_started_after_a_killed_one_is_seen_within_half_a_second():
@@ -54,6 +53,6 @@ def test_a_child_started_after_a_killed_one_is_seen_within_half_a_second():
         f"(median of {RUNS})",
         _course_times, lambda times: statistics.median(times) <= BOUND_S,
         show=lambda times: f"median {statistics.median(times):.3f} s; each, in s: "
-                           + " ".join(f"{value:.3f}" for value in sorted(times)))
+                           + " ".join(f"{value:.3f}" for value in times))
     print(verdict.line())
     verdict.raise_unless_passed()
