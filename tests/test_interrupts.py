@@ -132,7 +132,9 @@ rt._router.write_log = broken  # breaks what the /rosout reader calls for each l
 talker = rt.add(Talker, console=False)
 talker.get_logger().info('a line for the /rosout reader')
 rt.wait_until(lambda: rt.errors, 10, 'the /rosout reader to fail')
-time.sleep(0.5)  # its one line reaches this cell's output
+# A window, on purpose: the line comes from the /rosout reader's thread, and that path is the one this
+# cell broke, so no sentinel can follow it. A late second line would be missed, never counted wrongly.
+time.sleep(0.5)
 """
 
 
