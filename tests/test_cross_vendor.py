@@ -63,6 +63,22 @@ class BestEffortTalker(Node):
         self.incompatible.append(qos_policy_name_from_kind(event.last_policy_kind))
 
 
+def take(reader, publisher, topic: str, rt):
+    """One sample from a Cyclone reader, waiting at most TIMEOUT_S (a hang bound). If none came, the
+    failure says which side had matched which: Cyclone's reader, the rclpy publisher and the kernel's
+    graph (seen once beside a busy core: 15 s without a sample while discovery worked)."""
+    try:
+        return reader.take_one(timeout=duration(seconds=TIMEOUT_S))
+    except StopIteration:
+        matched = reader.get_subscription_matched_status()
+        listed = [i.node_name for i in rt.graph.get_subscriptions_info_by_topic(topic)]
+        raise AssertionError(
+            f"no sample on {topic} within {TIMEOUT_S:g} s: Cyclone's reader matched "
+            f"{matched.current_count} writer(s) ({matched.total_count} ever); the rclpy publisher matched "
+            f"{publisher.get_subscription_count()} reader(s); the kernel's graph lists readers of {listed}"
+        ) from None
+
+
 @pytest.fixture
 def participant(rt):
     cyclone.cyclone_domain(rt)
@@ -73,8 +89,8 @@ def participant(rt):
 def test_cyclone_and_rclpy_exchange_messages_both_ways(rt, participant):
     topic = Topic(participant, "rt/chatter", String_)  # ROS's /chatter, as the DDS names it
     reader = DataReader(participant, topic, qos=Qos(Policy.History.KeepLast(10)))
-    rt.add(Talker, rate_hz=20.0, console=False)
-    heard = [reader.take_one(timeout=duration(seconds=TIMEOUT_S)).data for _ in range(3)]
+    talker = rt.add(Talker, rate_hz=20.0, console=False)
+    heard = [take(reader, talker.publisher, "/chatter", rt).data for _ in range(3)]
     assert all(text.startswith("hello ") for text in heard), heard
 
     listener = rt.add(Listener, name="listener", console=False)
@@ -92,7 +108,7 @@ def test_a_reliable_cyclone_reader_never_matches_a_best_effort_rclpy_writer(rt, 
     reliable = DataReader(participant, topic, qos=Qos(Policy.Reliability.Reliable(duration(seconds=1))))
     best_effort = DataReader(participant, topic, qos=Qos(Policy.Reliability.BestEffort))
     talker = rt.add(BestEffortTalker, "sensor", console=False)
-    got = [best_effort.take_one(timeout=duration(seconds=TIMEOUT_S)) for _ in range(3)]  # the sentinel
+    got = [take(best_effort, talker.publisher, "/sensor", rt) for _ in range(3)]  # the sentinel
     rt.wait_until(lambda: talker.incompatible, TIMEOUT_S, "the incompatible-QoS event on the ROS side")
     assert len(got) == 3
     assert reliable.get_subscription_matched_status().current_count == 0
