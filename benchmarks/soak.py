@@ -7,7 +7,8 @@ processes (:mod:`tools.busy_loops`) are not children of the tests, so the course
 them as the neighbours they stand for: another student's kernel, a browser, another CI job.
 
 Prints each stage's result and time as it ends, then per stage the pass count, the median and the
-slowest time, and every failed test with the first line of its message. Exits 1 unless every stage of
+slowest time, and every failed test with the first line of its message, its worker and the files that
+worker ran before it. Exits 1 unless every stage of
 every run passed.
 """
 
@@ -23,10 +24,12 @@ import tempfile
 import time
 import xml.etree.ElementTree as ET
 
+from benchmarks.junit_workers import WORKER_PROPERTY
 from tools.busy_loops import busy_loops
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STAGES = ("logic", "timing", "notebooks")
+EARLIER_FILES = 4  # how many of the files a worker ran before a failed test's a failure names
 
 
 @dataclasses.dataclass
@@ -40,22 +43,37 @@ class StageRun:
 
 
 def failures_in(junit_path: str) -> list[tuple[str, str]]:
-    """The failed and erroring tests of a JUnit XML report, with the first line of each message."""
+    """The failed and erroring tests of a JUnit XML report, with the first line of each message.
+
+    Where the report names each test's worker (:mod:`benchmarks.junit_workers`), the message ends with
+    that worker and the last files it ran before the failed test's file: a test can fail for what an
+    earlier file left in the same process."""
     if not os.path.exists(junit_path):
         return []
-    found = []
+    found, ran = [], {}  # ran: worker -> its files (JUnit class names), in the order they started
     for case in ET.parse(junit_path).getroot().iter("testcase"):
+        worker = next((p.get("value") for p in case.iter("property") if p.get("name") == WORKER_PROPERTY),
+                      None)
+        module = case.get("classname", "")
+        files = ran.setdefault(worker, [])
+        if module not in files:
+            files.append(module)
         for problem in list(case.findall("failure")) + list(case.findall("error")):
-            test_id = f"{case.get('classname', '')}::{case.get('name', '')}"
+            test_id = f"{module}::{case.get('name', '')}"
             message = (problem.get("message") or problem.text or "").strip().splitlines()
-            found.append((test_id, message[0][:300] if message else "(no message)"))
+            text = message[0][:300] if message else "(no message)"
+            if worker is not None:
+                before = files[:files.index(module)][-EARLIER_FILES:]
+                text += f" [on {worker}, after {', '.join(before) or 'no other file'}]"
+            found.append((test_id, text))
     return found
 
 
 def run_stage(stage: str, run: int, scratch: str) -> StageRun:
     junit = os.path.join(scratch, f"{stage}-{run}.xml")
     started = time.monotonic()
-    done = subprocess.run(["make", "-s", "--no-print-directory", stage, f"PYTEST_EXTRA=--junitxml={junit}"],
+    extra = f"PYTEST_EXTRA=--junitxml={junit} -p benchmarks.junit_workers"
+    done = subprocess.run(["make", "-s", "--no-print-directory", stage, extra],
                           cwd=REPO, capture_output=True, text=True)
     seconds = time.monotonic() - started
     lines = [line for line in done.stdout.strip().splitlines() if line.strip()]

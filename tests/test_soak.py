@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
 from benchmarks.soak import StageRun, failures_in, summary
+
+from .conftest import REPO
 
 FAILING_FILE = '''
 def test_holds():
@@ -24,6 +27,20 @@ def test_a_failed_test_is_named_with_its_message(tmp_path):
     (failure,) = failures_in(str(junit))
     assert failure[0].endswith("::test_breaks") and "arithmetic is off" in failure[1]
     assert failures_in(str(tmp_path / "absent.xml")) == []
+
+
+def test_a_failure_names_its_worker_and_the_files_that_ran_before_it_there(tmp_path):
+    (tmp_path / "test_first.py").write_text("def test_fine():\n    pass\n")
+    (tmp_path / "test_second.py").write_text(FAILING_FILE)
+    junit = tmp_path / "report.xml"
+    env = {**os.environ, "PYTHONPATH": REPO}
+    subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "1",
+                    "--dist", "loadfile", "--no-loadscope-reorder", "-p", "benchmarks.junit_workers",
+                    "test_first.py", "test_second.py", f"--junitxml={junit}"],
+                   capture_output=True, cwd=tmp_path, env=env)
+    (failure,) = failures_in(str(junit))
+    assert failure[0] == "test_second::test_breaks", failure
+    assert failure[1].endswith("[on gw0, after test_first]"), failure
 
 
 def test_the_summary_counts_passes_and_lists_failures():
