@@ -8,8 +8,7 @@ them as the neighbours they stand for: another student's kernel, a browser, anot
 
 Prints each stage's result and time as it ends, then per stage the pass count, the median and the
 slowest time, and every failed test with the first line of its message, its worker and the files that
-worker ran before it. Exits 1 unless every stage of
-every run passed.
+worker ran before it. Exits 1 unless every stage of every run passed.
 """
 
 from __future__ import annotations
