@@ -43,6 +43,10 @@ $(STAMP): environment.txt pyproject.toml tools/jupyterlab/overrides.json
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r environment.txt
+	@# rfc3987-syntax (jsonschema's format-nongpl extra, which jupyter-events asks for) builds about thirty
+	@# Earley parsers when jsonschema is imported: 2 s of CPU in every process that imports nbformat (each
+	@# test worker, JupyterLab, nbgrader, nbclient). Without it jsonschema skips only its "iri" formats.
+	$(PY) -m pip uninstall --quiet --yes rfc3987-syntax
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	@# JupyterLab settings for the course: no "news" pop-up, no update check
 	@mkdir -p $(VENV)/share/jupyter/lab/settings
