@@ -79,6 +79,9 @@ def test_a_run_past_the_wall_clock_scores_zero_and_is_swept(course, tmp_path_fac
         assert float(frank[ex + "_check"]) == 0
         assert "wall clock of 20 s" in frank[ex + "_check reason"], output
     entry = log["frank"]
-    assert entry["domains"] and entry["domains_still_held"] == [], entry
+    # How far the run got before the wall clock stopped it depends on the machine's speed: on a slow
+    # one, the kernel had not yet taken its domain (seen in CI: 'domains' empty). Whatever it took must
+    # be free again; that a graded kernel takes one at all is test_nothing_of_a_run_is_left's to show.
+    assert entry["domains_still_held"] == [], entry
     assert entry["tmp_removed"]
     assert_no_process_left(log)
