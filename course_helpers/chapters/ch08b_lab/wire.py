@@ -105,8 +105,15 @@ class WireRun:
 
     @property
     def lost(self) -> list[int]:
-        """Sequence numbers of which the link dropped at least one copy."""
-        return sorted({s.seq for s in self.data() if s.dropped})
+        """Sequence numbers whose first copy the link dropped: the samples the reader lacked.
+
+        A sample whose first copy arrived can still be sent again: an ACKNACK may ask for it while that
+        copy waits in the reader's socket (a busy reader). The link dropping such a copy loses the reader
+        nothing, so it is no loss and needs no repair; :attr:`resent` still counts it."""
+        first: dict[int, Submessage] = {}
+        for copy in self.data():
+            first.setdefault(copy.seq, copy)
+        return sorted(seq for seq, copy in first.items() if copy.dropped)
 
     @property
     def repairs(self) -> list[Repair]:
@@ -160,7 +167,7 @@ class WireRun:
         line = ", ".join(f"{kind} {sent}" + (f" ({dropped} dropped)" if dropped else "")
                          for kind, (sent, dropped) in counts.items())
         return (f"{self.result.summary()}\n  on the wire: {line}; {self.resent} DATA sent again; "
-                f"{len(self.lost)} samples lost at least once, {len(self.repairs)} repaired, "
+                f"{len(self.lost)} samples lost (first copy dropped), {len(self.repairs)} repaired, "
                 f"{len(self.unrepaired)} never arrived (capture {self.capture_bytes / 1e3:.0f} kB)")
 
 
