@@ -308,7 +308,9 @@ def _busy_machine():
 
 def _lab_under_load(page) -> None:
     """08b's lab: the preset's Run both on a busy machine; reliable delivers all, the lab says busy."""
-    page.locator(".jp-DirListing-item", has_text="08b_qos_lab.ipynb").dblclick()  # from the file browser
+    # from the file browser; a hang bound like the waits below: on a loaded machine the page took longer
+    # than Playwright's default 30 s to take the double-click (seen in a fresh-clone CI run)
+    page.locator(".jp-DirListing-item", has_text="08b_qos_lab.ipynb").dblclick(timeout=90_000)
     page.locator(".lm-TabBar-tab.lm-mod-current", has_text="08b_qos_lab.ipynb").wait_for(timeout=90_000)
     notebook = page.locator(".jp-NotebookPanel:visible")
     notebook.locator(".jp-CodeCell").first.wait_for(timeout=90_000)
