@@ -28,7 +28,7 @@ from tools.busy_loops import busy_loops
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STAGES = ("logic", "timing", "notebooks")
-EARLIER_FILES = 4  # how many of the files a worker ran before a failed test's a failure names
+EARLIER_FILES = 4  # a failure names at most this many files its worker ran before the failed one
 
 
 @dataclasses.dataclass

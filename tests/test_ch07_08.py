@@ -317,14 +317,16 @@ class _DeadlineListener(Node):
 def test_deadline_events_fire_while_the_talker_is_paused(rt):
     listener, talker = rt.add(_DeadlineListener), rt.add(_PausingTalker)
     rt.wait_until(lambda: talker.publisher.get_subscription_count() > 0, 5, "matching")
-    start = qos.pause_talker(talker, pause=(0.5, 1.3), duration_s=1.6)
+    pause = (0.5, 1.3)  # s from the start
+    start = qos.pause_talker(talker, pause=pause, duration_s=1.6)
     # it resumes for certain; on a slow machine its first sample after the pause can arrive after 1.6 s
     # (seen in a fresh-clone CI run), so wait for it on the hang bound instead of judging a 0.3 s window
-    rt.wait_until(lambda: any(t - start > 1.3 for t in listener.arrivals), HANG_S, "a sample after the pause")
-    result = qos.DeadlineResult.from_nodes(talker, listener, start, deadline_s=0.25, pause=(0.5, 1.3))
+    rt.wait_until(lambda: any(t - start > pause[1] for t in listener.arrivals), HANG_S,
+                  "a sample after the pause")
+    result = qos.DeadlineResult.from_nodes(talker, listener, start, deadline_s=0.25, pause=pause)
     assert result.missed_during_pause("requested") >= 2 and result.missed_during_pause("offered") >= 2
     assert result.missed_outside_pause("requested") == 0
-    assert any(t > 1.3 for t in result.arrivals)  # it resumed
+    assert any(t > pause[1] for t in result.arrivals)  # it resumed
     with pytest.raises(CourseError):
         qos.pause_talker(talker, pause=(1.0, 0.5))
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import copy
 import importlib.util
-import json
 from pathlib import Path
 
 import nbformat
@@ -22,9 +21,9 @@ def test_the_venv_has_no_rfc3987_syntax():
 
 
 def test_nbformat_still_validates_a_notebook_and_rejects_a_broken_one():
-    notebook = json.loads((Path(REPO) / "notebooks" / "00_welcome.ipynb").read_text())
-    nbformat.validate(nbformat.from_dict(notebook))
+    notebook = nbformat.read(Path(REPO) / "notebooks" / "00_welcome.ipynb", as_version=4)
+    nbformat.validate(notebook)
     broken = copy.deepcopy(notebook)
-    broken["cells"][0]["cell_type"] = "not a cell type"
+    broken.cells[0].cell_type = "not a cell type"
     with pytest.raises(nbformat.ValidationError):
-        nbformat.validate(nbformat.from_dict(broken))
+        nbformat.validate(broken)
