@@ -13,6 +13,8 @@ import re
 
 from course_helpers.core.waiting import poll_until
 
+from .browsers import artifact
+
 NBGRADER_UI = ("Nbgrader", "Create Assignment", "Validate", "Formgrader")
 
 
@@ -107,3 +109,27 @@ def wait_for_its_kernel(page) -> None:
 def outputs(cell) -> str:
     """The text of a cell's outputs (its node consoles included)."""
     return "\n".join(cell.locator(".jp-OutputArea-output").all_inner_texts())
+
+
+def wait_until_lab_finished(panel, hang_ms: int) -> None:
+    """Wait for the end of 08b's lab run in ``panel``: its last status ('Done', 'Stopped' or a failure),
+    then the Run button enabled again, which the panel does last, after its machine note and after
+    replacing its static record. That replacement makes JupyterLab draw the widget anew, so an element
+    found before it is gone after it. ``hang_ms`` only ends a hang."""
+    last = re.compile(r"^\s*(Done|Stopped|The experiment failed)")
+    panel.locator(".qos-lab-status").filter(has_text=last).first.wait_for(timeout=hang_ms)
+    run = panel.locator("button").filter(has_text=re.compile(r"^\s*Run( both)?\s*$")).first
+    assert poll_until(run.is_enabled, hang_ms / 1000, period=0.1), "the Run button stayed disabled"
+
+
+def screenshot_widget(widget, name: str) -> None:
+    """Save a widget's picture as ``tests/artifacts/<name>``. A widget that JupyterLab draws anew meanwhile
+    (its output's display was updated) detaches the element; it is then found again. The picture is
+    for readers of the artifacts, not a check."""
+    for attempt in range(3):
+        try:
+            widget.screenshot(path=artifact(name), timeout=30_000)
+            return
+        except Exception as error:  # playwright's Error: "Element is not attached to the DOM"
+            if "not attached" not in str(error) or attempt == 2:
+                raise

@@ -52,7 +52,16 @@ from course_helpers.core.waiting import poll_until
 from tools.servers import free_port
 
 from .browsers import artifact, browser_page, require_chromium, write_lab_settings
-from .lab_page import assert_no_nbgrader_ui, new_cell, outputs, red_outputs, run_cell, wait_for_its_kernel
+from .lab_page import (
+    assert_no_nbgrader_ui,
+    new_cell,
+    outputs,
+    red_outputs,
+    run_cell,
+    screenshot_widget,
+    wait_for_its_kernel,
+    wait_until_lab_finished,
+)
 
 # About 2 minutes on a busy 2-core machine: JupyterLab twice, notebook 00, the interrupt, two lab runs
 # under load.
@@ -325,10 +334,9 @@ def _lab_under_load(page) -> None:
     run_both = panel.locator("button").filter(has_text=re.compile(r"^\s*Run both\s*$"))
     run_both.click()
     status = panel.locator(".qos-lab-status")
-    status.filter(has_text=re.compile(r"^\s*(Done|Stopped|The experiment failed)")).first.wait_for(
-        timeout=240_000)
+    wait_until_lab_finished(panel, 240_000)
     panel.scroll_into_view_if_needed()
-    panel.screenshot(path=artifact("first_session_lab_under_load.png"))
+    screenshot_widget(panel, "first_session_lab_under_load.png")
     text = status.inner_text()
     print(f"lab under load: {text}\n{panel.locator('.qos-lab-machine').inner_text()}")
     if "NOT FINISHED" in text:  # no repair got through for 20 s on an overloaded machine: said first

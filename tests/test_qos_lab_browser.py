@@ -21,6 +21,7 @@ import pytest
 from course_helpers.core.waiting import poll_until
 
 from .browsers import artifact, browser_page, require_chromium
+from .lab_page import screenshot_widget, wait_until_lab_finished
 from .servers import jupyter_lab
 
 pytestmark = pytest.mark.browser
@@ -57,8 +58,8 @@ def _run_the_lab(page, base: str, token: str) -> None:
     panel.locator("button").filter(has_text=re.compile(r"^\s*Run\s*$")).click()
     sources, started = {first_src}, time.monotonic()
     poll_until(lambda: sources.add(image.get_attribute("src")) or rows.count() > rows_before, 60, period=0.05)
-    _wait_until_finished(panel)
-    _screenshot(panel, "qos_lab_panel.png")
+    wait_until_lab_finished(panel, HANG_MS)
+    screenshot_widget(panel, "qos_lab_panel.png")
     page.screenshot(path=artifact("qos_lab_page.png"))
     status = panel.locator(".qos-lab-status").inner_text()
     print(f"{len(sources) - 1} plot frames seen in the browser in {time.monotonic() - started:.1f} s; "
@@ -72,8 +73,8 @@ def _run_the_lab(page, base: str, token: str) -> None:
     sources, started = set(), time.monotonic()
     poll_until(lambda: sources.add(image.get_attribute("src")) or rows.count() >= rows_before + 3, 90,
                period=0.05)
-    _wait_until_finished(panel)
-    _screenshot(panel, "qos_lab_compare.png")
+    wait_until_lab_finished(panel, HANG_MS)
+    screenshot_widget(panel, "qos_lab_compare.png")
     status = panel.locator(".qos-lab-status").inner_text()
     print(f"compare: {len(sources)} plot frames in {time.monotonic() - started:.1f} s; status: {status}")
     assert rows.count() == rows_before + 3, status
@@ -92,40 +93,18 @@ def _run_the_lab(page, base: str, token: str) -> None:
                    "attributeFilter: ['src']}); }")
     panel.locator("button").filter(has_text=re.compile(r"^\s*Run\s*$")).click()
     poll_until(lambda: rows.count() >= rows_before + 4, 60, period=0.1)
-    _wait_until_finished(panel)
+    wait_until_lab_finished(panel, HANG_MS)
     frames = page.evaluate("window.qosLabFrames")  # ms since page load
     status = panel.locator(".qos-lab-status").inner_text()
     span = (frames[-1] - frames[0]) / 1000 if len(frames) > 1 else 0.0
     print(f"fast stream: {len(frames)} frames in {span:.1f} s in the browser "
           f"({(len(frames) - 1) / span if span else 0:.1f} Hz); status: {status}")
-    _screenshot(panel, "qos_lab_fast.png")
+    screenshot_widget(panel, "qos_lab_fast.png")
     assert rows.count() == rows_before + 4, status
     # How many live frames the kernel draws depends on the CPU it gets (this machine is shared): at
     # least one besides the final picture shows that the plot follows a fast stream.
     assert len(frames) >= 2, "the plot did not follow a fast stream"
     assert "Traceback" not in page.content()
-
-
-def _screenshot(panel, name: str) -> None:
-    """Save the panel's picture; a widget that re-renders meanwhile detaches the element, and is then
-    found again (the picture is for readers of tests/artifacts, not a check)."""
-    for attempt in range(3):
-        try:
-            panel.screenshot(path=artifact(name), timeout=30_000)
-            return
-        except Exception as error:  # playwright's Error: "Element is not attached to the DOM"
-            if "not attached" not in str(error) or attempt == 2:
-                raise
-
-
-def _wait_until_finished(panel) -> None:
-    """Wait for the run's end: its last status ('Done' or 'Stopped'), shown after the final picture, and
-    then the Run button enabled again, which the panel does last (a setting moved before that is
-    announced then; see tests/test_experiments.py)."""
-    last = re.compile(r"^\s*(Done|Stopped|The experiment failed)")
-    panel.locator(".qos-lab-status").filter(has_text=last).first.wait_for(timeout=HANG_MS)
-    run = panel.locator("button").filter(has_text=re.compile(r"^\s*Run( both)?\s*$")).first
-    assert poll_until(run.is_enabled, HANG_MS / 1000, period=0.1), "the Run button stayed disabled"
 
 
 def _slide(panel, description: str, steps: int, shows: str) -> None:
