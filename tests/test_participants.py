@@ -12,7 +12,6 @@ from __future__ import annotations
 import gc
 import json
 import os
-import re
 import subprocess
 import sys
 import textwrap
@@ -100,26 +99,16 @@ def _moved(watch, label: str) -> str:
             f"{watch.new_participants(label)}, gone {watch.gone_participants(label)}")
 
 
-def _own_ports_mapped(watch, label: str) -> list[str]:
-    """The shared-memory port files that step ``label`` mapped for a port this process listens on (UDP):
-    its own participants' ports. The process also maps the ports of peers that the runtime's participant,
-    already there, writes to whenever it likes; those are no step's doing (a soak run saw
-    ``fastrtps_port7005``, another process's reader, appear during 'init')."""
-    listening = {port for _address, port in watch[label].sockets}
-    ports = [re.fullmatch(r"fastrtps_port(\d+)", name) for name in watch.mapped(label)]
-    return [port.group(0) for port in ports if port and int(port.group(1)) in listening]
-
-
 def test_init_creates_no_participant_the_first_node_does_and_the_last_one_ends_it(rt):
     watch = _footprint_steps(rt, contexts=1)
-    assert watch.unchanged("init") and not _own_ports_mapped(watch, "init"), \
+    assert watch.unchanged("init") and not watch.own_ports_mapped("init"), \
         f"{_moved(watch, 'init')}, mapped {watch.mapped('init')}"
     opened = watch.opened("first node")
     assert sum(is_graph_port(port) for _address, port in opened) == 1, opened
     base = 7400 + 250 * rt.domain.domain_id
     unicast = [port for _address, port in opened if 0 <= port - base - 10 < 240]
     assert len(unicast) == 2 and unicast[1] == unicast[0] + 1, opened  # discovery, user data
-    assert f"fastrtps_port{unicast[1]}" in _own_ports_mapped(watch, "first node")  # the check sees its own
+    assert f"fastrtps_port{unicast[1]}" in watch.own_ports_mapped("first node")  # the check sees its own
     [created] = watch.new_participants("first node")
     assert watch.created("first node") == watch.participant("/first") == created
     assert watch.created("init") is None and watch.deleted("first destroyed") is None

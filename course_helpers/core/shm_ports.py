@@ -29,6 +29,12 @@ _PORT = re.compile(r"fastrtps_port(\d+)")
 _SEGMENT = re.compile(r"fastrtps_[0-9a-f]{16}")
 
 
+def port_number(name: str) -> int | None:
+    """The RTPS port of a port file's name (``fastrtps_port7410`` gives 7410); None for any other name."""
+    match = _PORT.fullmatch(name)
+    return int(match.group(1)) if match else None
+
+
 def _held(lock_path: str) -> bool:
     """True if a process holds an flock on ``lock_path`` (a live owner of the Fast DDS object)."""
     try:
@@ -66,8 +72,8 @@ def remove_stale_ports(domain: int) -> int:
     first = 7400 + PORTS_PER_DOMAIN * domain
     removed = 0
     for name in _listing():
-        match = _PORT.fullmatch(name)
-        if not match or not first <= int(match.group(1)) < first + PORTS_PER_DOMAIN:
+        port = port_number(name)
+        if port is None or not first <= port < first + PORTS_PER_DOMAIN:
             continue
         base = os.path.join(SHM_DIR, name)
         if _held(base + "_el") or _held(base + "_sl"):

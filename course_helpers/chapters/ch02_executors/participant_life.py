@@ -29,6 +29,7 @@ from rclpy.node import Node
 from course_helpers.core.errors import CourseError
 from course_helpers.core.mapped_files import shm_files
 from course_helpers.core.participants import Participant, participant_of, participants_of_process
+from course_helpers.core.shm_ports import port_number
 from course_helpers.core.udp_sockets import classify_port, is_graph_port, udp_sockets
 from course_helpers.core.waiting import wait_until
 
@@ -113,6 +114,13 @@ class ParticipantWatch:
     def mapped(self, label: str) -> list[str]:
         """The shared-memory files that this process mapped during step ``label``, sorted."""
         return sorted(self[label].shm - self._previous(label).shm)
+
+    def own_ports_mapped(self, label: str) -> list[str]:
+        """The port files of :meth:`mapped` whose port this process listens on (UDP) after step ``label``:
+        its own participants'. The rest are peers' ports, which the participants already here (the
+        runtime's) map whenever they write to a peer, whatever the step does."""
+        listening = {port for _address, port in self[label].sockets}
+        return [name for name in self.mapped(label) if port_number(name) in listening]
 
     def new_participants(self, label: str) -> list[Participant]:
         """The participants of this process that the graph lists after step ``label`` and not before it."""
