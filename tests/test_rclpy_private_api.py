@@ -29,6 +29,10 @@ package uses these, each for a reason rclpy's public API does not cover (environ
 * ``Client.call`` living in ``rclpy/client.py``, and CPython's ``sys._current_frames()``, in
   ``chapters/ch04_services.py``: a callback of a single-threaded executor waiting in ``call()``
   (a deadlock by construction);
+* ``ActionClient._cancel_goal_async`` and ``._get_result_async``, wrapped with the public
+  ``send_goal_async`` and ``take_data`` in ``core/action_requests.py``: a response is never taken
+  before its request is filed (ros2/rclpy#1123); ``tests/test_action_requests.py`` also reads
+  ``ActionClient._client_handle`` and ``._is_goal_response_ready`` to make that race happen;
 * ``rclpy._rclpy_pybind11.RCLError`` in ``chapters/ch08b_lab/publisher.py``: a full KEEP_ALL
   history (back-pressure).
 
@@ -193,6 +197,27 @@ def test_a_client_keeps_its_pending_requests_and_waits_in_client_py(context):
         assert callable(getattr(sys, "_current_frames", None)), (
             "this Python has no sys._current_frames(): chapters/ch04_services.py reads the executor "
             "thread's stack with it")
+    finally:
+        node.destroy_node()
+
+
+def test_the_action_client_methods_the_request_lock_wraps_exist(context):
+    from course_interfaces.action import Fibonacci
+    from rclpy.action import ActionClient
+
+    from course_helpers.core.action_requests import LOCKED_METHODS, unlocked
+
+    for name in LOCKED_METHODS:
+        assert callable(unlocked(name)), _changed(f"ActionClient.{name}", "core/action_requests.py")
+    node = Node("private_api_action", context=context)
+    try:
+        client = ActionClient(node, Fibonacci, "private_api_action")
+        assert hasattr(client, "_client_handle"), _changed("ActionClient._client_handle",
+                                                          "tests/test_action_requests.py")
+        assert "self._is_goal_response_ready" in inspect.getsource(unlocked("take_data")), _changed(
+            "ActionClient._is_goal_response_ready (set by is_ready, read by take_data)",
+            "tests/test_action_requests.py")
+        client.destroy()
     finally:
         node.destroy_node()
 

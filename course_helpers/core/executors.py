@@ -31,6 +31,7 @@ from rclpy.executors import (
 )
 from rclpy.task import Future
 
+from course_helpers.core import action_requests
 from course_helpers.core.waiting import changes
 
 ErrorHandler = Callable[[BaseException], None]
@@ -119,6 +120,7 @@ class SpinThread:
         self.thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> SpinThread:
+        action_requests.install()  # a goal sent from another thread must find its response (see there)
         self.thread.start()
         return self
 
