@@ -6,6 +6,7 @@
 * :func:`browser_page` opens one page in headless Chromium, saves a screenshot to ``tests/artifacts/``
   when the block fails, and closes the browser;
 * :func:`artifact` is the path of a file in ``tests/artifacts/`` (git-ignored), made on demand;
+* :data:`HANG_MS`: the bound on every wait for what the page does for certain, which only ends a hang;
 * :data:`LAB_SETTINGS` and :func:`write_lab_settings`: JupyterLab's user settings for a test (no
   autosave, so a committed notebook is never rewritten; every cell in the page; no news).
 
@@ -25,6 +26,9 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 ARTIFACTS = REPO / "tests" / "artifacts"
 CHROMIUM = os.environ.get("COURSE_CHROMIUM", "/usr/bin/chromium")
+# ms; the one bound on a browser test's wait for what the page does for certain (a page loads, a kernel
+# starts, a cell's output or a lab run arrives, an element is drawn): it ends a hang and judges nothing
+HANG_MS = 240_000
 CHROMIUM_ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
 LAB_SETTINGS = {  # JupyterLab user settings for the tests: no autosave, every cell in the DOM, no news

@@ -13,7 +13,7 @@ import re
 
 from course_helpers.core.waiting import poll_until
 
-from .browsers import artifact
+from .browsers import HANG_MS, artifact
 
 NBGRADER_UI = ("Nbgrader", "Create Assignment", "Validate", "Formgrader")
 
@@ -43,12 +43,12 @@ def new_cell(page, notebook, code: str):
     code_cell = "jp-CodeCell" in cell.get_attribute("class")
     if not code_cell or cell.locator(".jp-InputArea-editor").inner_text().strip():
         cell.locator(".jp-InputPrompt").first.click()  # selects it, in command mode
-        notebook.locator(".jp-Notebook.jp-mod-commandMode").wait_for(timeout=10_000)
+        notebook.locator(".jp-Notebook.jp-mod-commandMode").wait_for(timeout=HANG_MS)
         page.keyboard.press("b")  # insert a cell below
         cell = cells.nth(count)
-        cell.wait_for(timeout=10_000)
+        cell.wait_for(timeout=HANG_MS)
     cell.locator(".jp-InputArea-editor").click()
-    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=10_000)
+    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=HANG_MS)
     page.keyboard.insert_text(code)  # as a paste: no auto-indent or closing brackets
     assert cell.locator(".jp-InputArea-editor").inner_text().split() == code.split(), "the paste went wrong"
     return cell
@@ -66,8 +66,8 @@ def run_cell(page, notebook, cell, finished: bool = True):
     prompt = cell.locator(".jp-InputPrompt").first
     shown_before = prompt.inner_text().strip()
     cell.locator(".jp-InputArea-editor").click()
-    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=10_000)
-    notebook.locator(".jp-Notebook.jp-mod-editMode").wait_for(timeout=10_000)
+    cell.locator(".jp-InputArea-editor.jp-mod-focused").wait_for(timeout=HANG_MS)
+    notebook.locator(".jp-Notebook.jp-mod-editMode").wait_for(timeout=HANG_MS)
     page.keyboard.press("Shift+Enter")
     dialog = page.locator(".jp-Dialog")
 
@@ -111,15 +111,15 @@ def outputs(cell) -> str:
     return "\n".join(cell.locator(".jp-OutputArea-output").all_inner_texts())
 
 
-def wait_until_lab_finished(panel, hang_ms: int) -> None:
+def wait_until_lab_finished(panel) -> None:
     """Wait for the end of 08b's lab run in ``panel``: its last status ('Done', 'Stopped' or a failure),
     then the Run button enabled again, which the panel does last, after its machine note and after
     replacing its static record. That replacement makes JupyterLab draw the widget anew, so an element
-    found before it is gone after it. ``hang_ms`` only ends a hang."""
+    found before it is gone after it. :data:`HANG_MS` only ends a hang."""
     last = re.compile(r"^\s*(Done|Stopped|The experiment failed)")
-    panel.locator(".qos-lab-status").filter(has_text=last).first.wait_for(timeout=hang_ms)
+    panel.locator(".qos-lab-status").filter(has_text=last).first.wait_for(timeout=HANG_MS)
     run = panel.locator("button").filter(has_text=re.compile(r"^\s*Run( both)?\s*$")).first
-    assert poll_until(run.is_enabled, hang_ms / 1000, period=0.1), "the Run button stayed disabled"
+    assert poll_until(run.is_enabled, HANG_MS / 1000, period=0.1), "the Run button stayed disabled"
 
 
 def screenshot_widget(widget, name: str) -> None:
@@ -128,7 +128,7 @@ def screenshot_widget(widget, name: str) -> None:
     for readers of the artifacts, not a check."""
     for attempt in range(3):
         try:
-            widget.screenshot(path=artifact(name), timeout=30_000)
+            widget.screenshot(path=artifact(name), timeout=HANG_MS)
             return
         except Exception as error:  # playwright's Error: "Element is not attached to the DOM"
             if "not attached" not in str(error) or attempt == 2:

@@ -28,7 +28,7 @@ import pytest
 
 from course_helpers.core.waiting import poll_until
 
-from .browsers import artifact, browser_page, require_chromium
+from .browsers import HANG_MS, artifact, browser_page, require_chromium
 from .lab_page import menu, red_outputs, run_cell, wait_for_its_kernel
 from .servers import jupyter_lab
 
@@ -54,9 +54,9 @@ def test_run_all_then_every_slider_and_button(lab, name):
     with browser_page(height=1000, on_failure=f"run_all_{stem}_failure.png") as page:
         started = time.monotonic()
         # a workspace of its own: JupyterLab reopens no notebook of an earlier test (nor starts its kernel)
-        page.goto(lab.url(f"lab/workspaces/{stem}/tree/{name}"), timeout=90_000)
+        page.goto(lab.url(f"lab/workspaces/{stem}/tree/{name}"), timeout=HANG_MS)
         notebook = page.locator(".jp-NotebookPanel:visible")
-        notebook.locator(".jp-CodeCell").first.wait_for(timeout=90_000)
+        notebook.locator(".jp-CodeCell").first.wait_for(timeout=HANG_MS)
         wait_for_its_kernel(page)
         _clear_outputs(page, notebook)  # every prompt, output and error seen below is this run's
         menu(page, "Run", "Run All Cells")
@@ -202,31 +202,31 @@ def test_the_notice_button_and_the_labs_progress_beside_another_kernel(lab):
     """03's kernel runs ROS; 08b then names it in the other-kernels notice, with a button, and its lab
     warns before a run and counts while it goes; the notice's button shuts 03's kernel down."""
     with browser_page(height=1100, on_failure="busy_lab_failure.png") as page:
-        page.goto(lab.url("lab/workspaces/busy/tree/03_topics.ipynb"), timeout=90_000)
+        page.goto(lab.url("lab/workspaces/busy/tree/03_topics.ipynb"), timeout=HANG_MS)
         notebook = page.locator(".jp-NotebookPanel:visible")
-        notebook.locator(".jp-CodeCell").first.wait_for(timeout=90_000)
+        notebook.locator(".jp-CodeCell").first.wait_for(timeout=HANG_MS)
         wait_for_its_kernel(page)
         _clear_outputs(page, notebook)
         run_cell(page, notebook, notebook.locator(".jp-CodeCell").filter(has_text="rt = get_runtime()").first)
-        page.goto(lab.url("lab/workspaces/busy/tree/08b_qos_lab.ipynb"), timeout=90_000)
-        page.locator(".lm-TabBar-tab.lm-mod-current", has_text="08b_qos_lab.ipynb").wait_for(timeout=90_000)
+        page.goto(lab.url("lab/workspaces/busy/tree/08b_qos_lab.ipynb"), timeout=HANG_MS)
+        page.locator(".lm-TabBar-tab.lm-mod-current", has_text="08b_qos_lab.ipynb").wait_for(timeout=HANG_MS)
         notebook = page.locator(".jp-NotebookPanel:visible")
-        notebook.locator(".jp-CodeCell").first.wait_for(timeout=90_000)
+        notebook.locator(".jp-CodeCell").first.wait_for(timeout=HANG_MS)
         wait_for_its_kernel(page)
         _clear_outputs(page, notebook)
         first = notebook.locator(".jp-CodeCell").filter(has_text="rt = get_runtime()").first
         run_cell(page, notebook, first)
         notice = first.locator(".course-other-kernels")
-        notice.wait_for(timeout=30_000)
+        notice.wait_for(timeout=HANG_MS)
         assert "03_topics.ipynb" in notice.inner_text(), notice.inner_text()
         first.screenshot(path=artifact("notice_button.png"))
         run_cell(page, notebook, notebook.locator(".jp-CodeCell").filter(has_text="lab = qos_lab()").first)
         panel = notebook.locator(".qos-lab").first
-        panel.wait_for(timeout=60_000)
+        panel.wait_for(timeout=HANG_MS)
         panel.locator("button", has_text="depth 1 vs 100, slow subscriber").click()
         panel.locator("button").filter(has_text=re.compile(r"^\s*Run both\s*$")).click()
         warning = panel.locator(".qos-lab-busy")
-        warning.wait_for(timeout=30_000)
+        warning.wait_for(timeout=HANG_MS)
         assert "Before this run, this machine is" in warning.inner_text(), warning.inner_text()
         progress = panel.locator(".qos-lab-progress")
         lines: list[str] = []
@@ -239,14 +239,14 @@ def test_the_notice_button_and_the_labs_progress_beside_another_kernel(lab):
                 panel.screenshot(path=artifact("lab_progress.png"))
             return "s in all" in text
 
-        assert poll_until(counting, 180, period=0.1), lines
+        assert poll_until(counting, HANG_MS / 1000, period=0.1), lines
         print("progress lines seen in the browser:", lines)
         running = [line for line in lines if " s so far" in line]
         assert len(running) >= 3, lines  # rewritten while the runs went
         assert any(re.search(r"\d+ sent and \d+ delivered", line) for line in running), lines
         notice.locator("button", has_text="Shut them down").click()
         said = notice.locator(".course-shutdown-result")
-        said.wait_for(timeout=60_000)
+        said.wait_for(timeout=HANG_MS)
         print(said.inner_text())
         assert said.inner_text().startswith("[course] Shut down 1 other course kernel of this Jupyter server "
                                             "(03_topics.ipynb)"), said.inner_text()

@@ -51,7 +51,7 @@ import pytest
 from course_helpers.core.waiting import poll_until
 from tools.servers import free_port
 
-from .browsers import artifact, browser_page, require_chromium, write_lab_settings
+from .browsers import HANG_MS, artifact, browser_page, require_chromium, write_lab_settings
 from .lab_page import (
     assert_no_nbgrader_ui,
     new_cell,
@@ -176,11 +176,11 @@ def test_a_students_first_session(fresh_clone):
 
 def _start_page(page, url: str) -> None:
     """The address opens notebook 00, with no nbgrader UI and the saved outputs marked."""
-    page.goto(url, timeout=90_000)
-    page.wait_for_selector(".jp-Notebook .jp-Cell", timeout=90_000)
-    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=120_000)
+    page.goto(url, timeout=HANG_MS)
+    page.wait_for_selector(".jp-Notebook .jp-Cell", timeout=HANG_MS)
+    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=HANG_MS)
     assert page.locator(".lm-TabBar-tab.lm-mod-current", has_text="00_welcome.ipynb").count() >= 1
-    page.locator(".jp-RenderedMarkdown", has_text=REFERENCE_NOTE).first.wait_for(timeout=10_000)
+    page.locator(".jp-RenderedMarkdown", has_text=REFERENCE_NOTE).first.wait_for(timeout=HANG_MS)
     page.screenshot(path=artifact("first_session_start.png"))
     assert_no_nbgrader_ui(page)
 
@@ -246,7 +246,7 @@ def _textbook_spin_and_interrupt(page, server_tree) -> None:
     run_cell(page, notebook, spin, finished=False)  # it spins until interrupted
     assert _node_in_domain(domain, "x", timeout=60), "the textbook's node /x never joined the graph"
     notebook.locator('[data-command="notebook:interrupt-kernel"]').first.click()  # the toolbar's button
-    spin.locator(".jp-InputPrompt", has_text=re.compile(r"^\s*\[\d+\]:\s*$")).wait_for(timeout=60_000)
+    spin.locator(".jp-InputPrompt", has_text=re.compile(r"^\s*\[\d+\]:\s*$")).wait_for(timeout=HANG_MS)
     shown = [line for line in outputs(spin).splitlines() if line.strip()]
     print(f"the interrupted cell shows: {shown}")
     assert len(shown) == 1 and shown[0].startswith("KeyboardInterrupt"), shown
@@ -319,22 +319,22 @@ def _lab_under_load(page) -> None:
     """08b's lab: the preset's Run both on a busy machine; reliable delivers all, the lab says busy."""
     # from the file browser; a hang bound like the waits below: on a loaded machine the page took longer
     # than Playwright's default 30 s to take the double-click (seen in a fresh-clone CI run)
-    page.locator(".jp-DirListing-item", has_text="08b_qos_lab.ipynb").dblclick(timeout=90_000)
-    page.locator(".lm-TabBar-tab.lm-mod-current", has_text="08b_qos_lab.ipynb").wait_for(timeout=90_000)
+    page.locator(".jp-DirListing-item", has_text="08b_qos_lab.ipynb").dblclick(timeout=HANG_MS)
+    page.locator(".lm-TabBar-tab.lm-mod-current", has_text="08b_qos_lab.ipynb").wait_for(timeout=HANG_MS)
     notebook = page.locator(".jp-NotebookPanel:visible")
-    notebook.locator(".jp-CodeCell").first.wait_for(timeout=90_000)
+    notebook.locator(".jp-CodeCell").first.wait_for(timeout=HANG_MS)
     opened = time.monotonic()
     wait_for_its_kernel(page)  # the cells render while the status bar still says "No Kernel | Initializing"
     print(f"08b's kernel was idle {time.monotonic() - opened:.1f} s after its first cell showed")
     for text in ("rt = get_runtime()", "lab = qos_lab()"):  # the runtime, then the lab's cell
         run_cell(page, notebook, notebook.locator(".jp-CodeCell").filter(has_text=text).first)
     panel = notebook.locator(".qos-lab").first
-    panel.wait_for(timeout=60_000)
+    panel.wait_for(timeout=HANG_MS)
     panel.locator("button", has_text="best-effort vs reliable under load").click()
     run_both = panel.locator("button").filter(has_text=re.compile(r"^\s*Run both\s*$"))
     run_both.click()
     status = panel.locator(".qos-lab-status")
-    wait_until_lab_finished(panel, 240_000)
+    wait_until_lab_finished(panel)
     panel.scroll_into_view_if_needed()
     screenshot_widget(panel, "first_session_lab_under_load.png")
     text = status.inner_text()

@@ -41,7 +41,7 @@ from course_helpers.core.waiting import poll_until
 from tools.container.engine import Engine, find_engine
 from tools.servers import free_port
 
-from .browsers import artifact, browser_page, require_chromium
+from .browsers import HANG_MS, artifact, browser_page, require_chromium
 from .lab_page import assert_no_nbgrader_ui, menu
 from .servers import ContainerServer, http_get, jupyterhub, shut_down_kernels
 
@@ -253,9 +253,9 @@ def _put_setting(base: str, token: str, plugin: str, values: dict) -> None:
 def _run_notebook_00(page, base: str, token: str) -> None:
     # Every cell in the page (no virtual scrolling), so that every cell's prompt can be read.
     _put_setting(base, token, "@jupyterlab/notebook-extension:tracker", {"windowingMode": "none"})
-    page.goto(f"{base}/lab/tree/00_welcome.ipynb?token={token}", timeout=60_000)
-    page.wait_for_selector(".jp-Notebook .jp-CodeCell", timeout=60_000)
-    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=90_000)
+    page.goto(f"{base}/lab/tree/00_welcome.ipynb?token={token}", timeout=HANG_MS)
+    page.wait_for_selector(".jp-Notebook .jp-CodeCell", timeout=HANG_MS)
+    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=HANG_MS)
     assert_no_nbgrader_ui(page)  # the image's JupyterLab is the student's, as make lab's
     prompts = page.locator(".jp-Notebook .jp-CodeCell .jp-InputPrompt")
     menu(page, "Edit", "Clear Outputs of All Cells")  # so that every output seen below is new
@@ -273,7 +273,7 @@ def _run_notebook_00(page, base: str, token: str) -> None:
 
     poll_until(finished, 180, period=0.5)
     seconds = time.monotonic() - started
-    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=60_000)
+    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=HANG_MS)
     page.screenshot(path=artifact("image_notebook_00.png"), full_page=True)
     texts = prompts.all_inner_texts()
     errors = page.locator(".jp-OutputArea-output[data-mime-type='application/vnd.jupyter.stderr']")

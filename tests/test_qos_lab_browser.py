@@ -20,7 +20,7 @@ import pytest
 
 from course_helpers.core.waiting import poll_until
 
-from .browsers import artifact, browser_page, require_chromium
+from .browsers import HANG_MS, artifact, browser_page, require_chromium
 from .lab_page import screenshot_widget, wait_until_lab_finished
 from .servers import jupyter_lab
 
@@ -28,7 +28,6 @@ pytestmark = pytest.mark.browser
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 NOTEBOOK = os.path.join(REPO, "notebooks", "08b_qos_lab.ipynb")
-HANG_MS = 180_000  # what the kernel does for certain, waited for; the bound only ends a hang
 
 
 def test_lab_runs_in_a_real_browser():
@@ -41,24 +40,24 @@ def test_lab_runs_in_a_real_browser():
 
 
 def _run_the_lab(page, base: str, token: str) -> None:
-    page.goto(f"{base}/lab/tree/08b_qos_lab.ipynb?token={token}", timeout=60_000)
-    page.wait_for_selector(".jp-Notebook .jp-Cell", timeout=60_000)
+    page.goto(f"{base}/lab/tree/08b_qos_lab.ipynb?token={token}", timeout=HANG_MS)
+    page.wait_for_selector(".jp-Notebook .jp-Cell", timeout=HANG_MS)
     # Wait until the kernel is up, then run the lab cell (tagged 'qos-lab'; found by its source).
-    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=90_000)
+    page.locator(".jp-StatusBar-Item", has_text="Idle").first.wait_for(timeout=HANG_MS)
     cell = page.locator(".jp-CodeCell").filter(has_text="lab = qos_lab()").first
     cell.locator(".jp-InputArea-editor").click()
     page.keyboard.press("Shift+Enter")
     panel = page.locator(".qos-lab").first
-    panel.wait_for(timeout=90_000)
+    panel.wait_for(timeout=HANG_MS)
     image = panel.locator("img").first
-    image.wait_for(timeout=30_000)
+    image.wait_for(timeout=HANG_MS)
     first_src = image.get_attribute("src")
     rows = panel.locator("table.qos-lab-results tbody tr td:nth-child(2)")  # a placeholder row has 1 cell
     rows_before = rows.count()
     panel.locator("button").filter(has_text=re.compile(r"^\s*Run\s*$")).click()
     sources, started = {first_src}, time.monotonic()
     poll_until(lambda: sources.add(image.get_attribute("src")) or rows.count() > rows_before, 60, period=0.05)
-    wait_until_lab_finished(panel, HANG_MS)
+    wait_until_lab_finished(panel)
     screenshot_widget(panel, "qos_lab_panel.png")
     page.screenshot(path=artifact("qos_lab_page.png"))
     status = panel.locator(".qos-lab-status").inner_text()
@@ -73,7 +72,7 @@ def _run_the_lab(page, base: str, token: str) -> None:
     sources, started = set(), time.monotonic()
     poll_until(lambda: sources.add(image.get_attribute("src")) or rows.count() >= rows_before + 3, 90,
                period=0.05)
-    wait_until_lab_finished(panel, HANG_MS)
+    wait_until_lab_finished(panel)
     screenshot_widget(panel, "qos_lab_compare.png")
     status = panel.locator(".qos-lab-status").inner_text()
     print(f"compare: {len(sources)} plot frames in {time.monotonic() - started:.1f} s; status: {status}")
@@ -93,7 +92,7 @@ def _run_the_lab(page, base: str, token: str) -> None:
                    "attributeFilter: ['src']}); }")
     panel.locator("button").filter(has_text=re.compile(r"^\s*Run\s*$")).click()
     poll_until(lambda: rows.count() >= rows_before + 4, 60, period=0.1)
-    wait_until_lab_finished(panel, HANG_MS)
+    wait_until_lab_finished(panel)
     frames = page.evaluate("window.qosLabFrames")  # ms since page load
     status = panel.locator(".qos-lab-status").inner_text()
     span = (frames[-1] - frames[0]) / 1000 if len(frames) > 1 else 0.0
