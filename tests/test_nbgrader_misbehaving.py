@@ -3,13 +3,16 @@
 Chapter 04 is released into a course directory of this file's own (``test_nbgrader.py`` grades the
 correct, unchanged and hanging submissions on another worker meanwhile). Two students hand in code
 that kills the kernel, or floods the output in one exercise and leaves a detached process in the
-other; a third is graded with a wall clock shorter than its run. Each misbehaving exercise scores
-zero with its reason, the other exercise is still graded, and nothing of any run is left.
+other; a third is graded with a wall clock shorter than its run, and a fourth's hang is cut beside
+busy processes. Each misbehaving exercise scores zero with its reason, the other exercise is still
+graded, and nothing of any run is left.
 """
 
 from __future__ import annotations
 
 import pytest
+
+from tools.busy_loops import busy_loops
 
 from .nbgrader_support import (
     CRASHES,
@@ -84,4 +87,21 @@ def test_a_run_past_the_wall_clock_scores_zero_and_is_swept(course, tmp_path_fac
     # be free again; that a graded kernel takes one at all is test_nothing_of_a_run_is_left's to show.
     assert entry["domains_still_held"] == [], entry
     assert entry["tmp_removed"]
+    assert_no_process_left(log)
+
+
+def test_a_timeout_on_a_busy_machine_is_inconclusive_and_still_scores_zero(course, tmp_path_factory):
+    """A cell the wall clock cut while the machine was busy may have been slowed, not hung: the reason
+    says the timeout is inconclusive, with the load, and the exercise still scores zero (an inconclusive
+    verdict is never a pass). The busy machine is two real CPU-bound processes outside the grader."""
+    course_dir, _ = course
+    answers = {EX1: HANGS, EX2: solutions(course_dir)[EX2]}
+    submissions = hand_in(course_dir, {"gina": answers}, tmp_path_factory.mktemp("busy"))
+    with busy_loops(2):
+        rows, log, output = grade(course_dir, submissions, course_dir / "graded-busy", wall_clock=600,
+                                  cell_timeout=10)
+    why = reason(rows, "gina", EX1)
+    assert points(rows, "gina", EX1) == 0 and "CellTimeoutError" in why, output
+    assert "Inconclusive: this machine was busy while it ran (other processes used " in why, why
+    assert any(e["kind"] == "timeout on a busy machine" for e in log["gina"]["events"]), log["gina"]
     assert_no_process_left(log)

@@ -3,6 +3,12 @@
 nbgrader already interrupts a cell that runs past ``Execute.timeout`` and records a
 ``CellTimeoutError``. :class:`GuardedExecute` adds, for each cell:
 
+* the machine's load, when the wall clock cut a cell: a hang and a correct answer slowed by a
+  busy machine look the same to it. If the machine was busy while the cell ran (the course's one
+  load verdict, :class:`course_helpers.core.machine_load.MachineLoad`), the error says the
+  timeout is inconclusive, with the load, and to grade again on a quiet machine; the exercise
+  still scores zero, as an inconclusive verdict is never a pass;
+
 * an output limit: past ``max_output_bytes`` the cell's further output is dropped, the
   kernel is interrupted and the cell gets an ``OutputLimitExceeded`` error;
 * a dead kernel: the cell gets a ``KernelDied`` error, the kernel is restarted and the cells
@@ -37,11 +43,13 @@ from nbgrader.preprocessors import Execute
 from traitlets import Integer, Unicode
 
 from course_helpers.core.domains import SOCKET_PREFIX
+from course_helpers.core.machine_load import LoadMeter
 from tools.grading.isolation import kill_all
 
 DOMAIN_SOCKET = re.compile(r"^@" + re.escape(SOCKET_PREFIX) + r"(\d+)$")
 COURSE_CHILD = "course_helpers.core.child"  # how the course's process layer starts a child
 PARENT_ENV = "COURSE_PARENT_PID"  # set by that layer for a child that must die with the kernel
+TIMEOUT = "CellTimeoutError"  # the ename of nbgrader's error for a cell cut by Execute.timeout
 
 
 def _error(ename: str, evalue: str) -> dict:
@@ -85,6 +93,7 @@ class GuardedExecute(Execute):
         if meta.get("solution"):
             self._before = self._descendants()
         self._out_bytes, self._flooded = 0, False
+        meter = LoadMeter()
         try:
             cell, _ = super().preprocess_cell(cell, resources, index)
         except DeadKernelError:
@@ -94,6 +103,7 @@ class GuardedExecute(Execute):
             self._revive(index)
             return cell, self.resources
         self._note_kernel()
+        self._judge_timeout(cell, label, meter)
         if self._flooded:
             reason = (f"the cell printed more than {self.max_output_bytes} bytes; the rest was dropped "
                       "and the cell was interrupted")
@@ -119,6 +129,18 @@ class GuardedExecute(Execute):
                     asyncio.ensure_future(self.km.interrupt_kernel())
                 return None
         return super().output(outs, msg, display_id, cell_index)
+
+    def _judge_timeout(self, cell, label: str, meter: LoadMeter) -> None:
+        """If the wall clock cut the cell while the machine was busy, say so in its error."""
+        cut = [o for o in cell.outputs if o.get("output_type") == "error" and o.get("ename") == TIMEOUT]
+        if not cut:
+            return
+        load = meter.finish()
+        if not load.busy:
+            return
+        cut[0].evalue = busy_timeout(cut[0].evalue, load)
+        cut[0].traceback = [f"{TIMEOUT}: {cut[0].evalue}"]
+        self._event(label, "timeout on a busy machine", cut[0].evalue)
 
     # ------------------------------------------------------------------ helpers
     def _event(self, cell: str, kind: str, detail: str) -> None:
@@ -186,3 +208,9 @@ class GuardedExecute(Execute):
         except Exception as exc:  # the kernel cannot be brought back: the rest is not run
             self._dead_reason = f"not run: the kernel died in cell {index} and could not be restarted ({exc})"
             self._event(f"cell {index}", "kernel lost", self._dead_reason)
+
+
+def busy_timeout(evalue: str, load) -> str:
+    """A timeout's message when the machine was busy: inconclusive, the load, and what to do."""
+    return (f"{evalue}. Inconclusive: this machine was busy while it ran ({load.reading()}), so the "
+            "cell may have been slowed, not hung; grade it again when the machine is quiet")
