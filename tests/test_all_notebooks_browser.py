@@ -191,7 +191,7 @@ def _log_console(page) -> str:
     """The text of JupyterLab's log console for the current notebook (opened for it)."""
     page.evaluate("() => window.jupyterapp.commands.execute('logconsole:open', {insertMode: 'split-bottom'})")
     panel = page.locator(".jp-LogConsolePanel")
-    panel.first.wait_for(timeout=15_000)
+    panel.first.wait_for(timeout=HANG_MS)
     # A window, on purpose: the panel draws the entries its log already holds after it appears, and this
     # test has no marker of when that is done. Load can only hide an entry (a missed error), never invent one.
     time.sleep(1.0)

@@ -25,7 +25,6 @@ import threading
 from rclpy.action import ActionClient
 
 _LOCK_ATTRIBUTE = "_course_request_lock"
-_creating = threading.Lock()
 _installed: list[bool] = []
 
 # each one sends a request and files its sequence number, or takes the responses to them
@@ -35,10 +34,8 @@ LOCKED_METHODS = ("send_goal_async", "_cancel_goal_async", "_get_result_async", 
 def request_lock(client: ActionClient) -> threading.RLock:
     """The lock of ``client``, made on first use (clients made before :func:`install` get one too)."""
     lock = client.__dict__.get(_LOCK_ATTRIBUTE)
-    if lock is None:
-        with _creating:
-            lock = client.__dict__.setdefault(_LOCK_ATTRIBUTE, threading.RLock())
-    return lock
+    # dict.setdefault is atomic: two threads asking at once get the same lock
+    return lock if lock is not None else client.__dict__.setdefault(_LOCK_ATTRIBUTE, threading.RLock())
 
 
 def _under_request_lock(method):
