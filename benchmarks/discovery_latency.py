@@ -14,13 +14,33 @@ with localhost-only discovery:
 * ``plain-rclpy``: an anchor and probes written in plain rclpy (no course code at all), with
   Fast DDS's defaults: the baseline a student gets from a textbook script.
 
-For every probe, times are counted from the moment its node exists (``Node()`` returned) until
+For every probe, times are counted from the moment it *calls* for its node (``rt.add`` or ``Node()``,
+the call that creates the process's participant and so starts its discovery), which is what a user
+waits for, until
 
 * ``anchor sees new``: the anchor process lists the new node in its graph;
 * ``new sees anchor``: the new process lists the anchor's node;
 * ``sub matched``: the new node's subscription matches the anchor's publisher.
 
-Creating the node (the process's participant) is reported apart: it is start-up, not discovery.
+**The floor.** A trace of the loopback traffic (the course set-up over UDP, decoded by tshark) shows
+where the time goes once the participant exists, a few ms after the call:
+
+1. the anchor answers the newcomer's first announcement at once; when the answer comes before the
+   newcomer listens (about half of the probes), the newcomer learns of the anchor only at the
+   anchor's next periodic announcement, 0 to ``ANNOUNCEMENT_S`` later;
+2. each side then asks the other's endpoint-discovery writers for their history, and Fast DDS answers
+   that request after a fixed 100 ms (``edp_nack_response_delay`` in ``EDPSimple.cpp``, not settable
+   in a profile): only after it does the newcomer know the anchor's graph reader;
+3. the graph readers' requests (after ``GRAPH_ACKNACK_S``) bring each side the other's node list.
+
+So a node is seen about 0.13 s after the call when the first answer is heard, and up to one
+announcement period later when it is not: ``GOAL_S`` is that sum, with room for creating the
+participant. Earlier versions of this script counted from the moment the constructor *returned*, and
+sightings before it were counted as 0: whatever part of the 100 ms fell inside the constructor was
+hidden, and how much did depended on how long the constructor took to load its modules.
+
+How long the call itself takes is reported too (``create node``); discovery runs beside it, in Fast DDS's
+threads.
 
 The set-ups run one after another, and each one's anchor stops before the next set-up starts.
 Every participant's graph reader listens on a shared-memory port from one range for the whole
@@ -45,12 +65,14 @@ import time
 
 from benchmarks.discovery_targets import PROBE_TIMEOUT_S, BeaconAnchor, probe_procedure
 from course_helpers.core import processes
-from course_helpers.core.dds_config import PROFILE_ENV, default_discovery_env
+from course_helpers.core.dds_config import ANNOUNCEMENT_S, PROFILE_ENV, default_discovery_env
 from course_helpers.core.domains import reserve_domain
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.waiting import poll_until
 
 KEYS = ("anchor sees new", "new sees anchor", "sub matched")
+EDP_ANSWER_S = 0.1  # s; Fast DDS 2.14's fixed delay before endpoint discovery answers a request
+GOAL_S = round(EDP_ANSWER_S + ANNOUNCEMENT_S + 0.1, 3)  # s; course p90 from the call (see the floor)
 
 
 # ---------------------------------------------------------------------- plain rclpy processes
@@ -179,10 +201,11 @@ class PlainSetup:
 
 # ---------------------------------------------------------------------- measuring
 def latencies(result: dict) -> dict:
-    created = result["created"]
+    """A probe's times, in seconds from its call for the node (``result["start"]``)."""
+    start = result["start"]
 
     def since(t):
-        return None if t is None else max(0.0, t - created)
+        return None if t is None else t - start
 
     return {"create node": result["created"] - result["start"],
             "anchor sees new": since(result["anchor_saw"]),
@@ -241,7 +264,7 @@ def main(argv=None) -> int:
         label, rows[label] = measure(start, args.runs)
         print(f"  {label}: {args.runs} fresh processes done", flush=True)
     print(f"\nDiscovery of a node in a new process, {args.runs} fresh processes per set-up "
-          "(seconds from the node's creation; p50 / p90):")
+          "(seconds from the call that creates the node; p50 / p90):")
     print(f"{'set-up':<17}{'create node':>16}" + "".join(f"  {k:>24}" for k in KEYS))
     p90 = {}
     for label, data in rows.items():
@@ -254,8 +277,8 @@ def main(argv=None) -> int:
         print(f"{label:<17}{cells[0]:>16}" + "".join(f"  {c:>24}" for c in cells[1:]))  # never run together
     course_worst = max(p90["course", k] for k in KEYS)
     plain_worst = max(p90["plain-rclpy", k] for k in KEYS)
-    print(f"\ncourse p90 (worst of the three): {course_worst:.3f} s (goal <= 0.3 s: "
-          f"{'met' if course_worst <= 0.3 else 'NOT met'}); plain rclpy p90: {plain_worst:.3f} s; "
+    print(f"\ncourse p90 (worst of the three): {course_worst:.3f} s (goal <= {GOAL_S} s from the call: "
+          f"{'met' if course_worst <= GOAL_S else 'NOT met'}); plain rclpy p90: {plain_worst:.3f} s; "
           f"ratio course / plain: {course_worst / plain_worst:.2f}")
     processes.stop_all()
     return 0
