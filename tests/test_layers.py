@@ -43,12 +43,12 @@ CORE_EXTRAS = {
                 "records a bag keeps, message definitions and RIHS01 hashes, the writer and the reader"),
     "numpy": ({"course_helpers.core.build_interfaces"}, "the rosidl build needs NumPy's C headers"),
     "psutil": ({"course_helpers.core.domains", "course_helpers.core.supervisor",
-                "course_helpers.core.udp_sockets", "course_helpers.core.processes",
-                "course_helpers.core.other_kernels", "course_helpers.core.machine_load",
-                "course_helpers.core.kernel_shutdown", "course_helpers.core.mapped_files"},
-               "who holds a domain; the descendants a child ends when it exits; a process's UDP "
-               "sockets; the program under a child's supervisor; the other kernels of the same "
-               "Jupyter server; the machine's CPU time and this process tree's during a measurement; "
+                "course_helpers.core.processes", "course_helpers.core.other_kernels",
+                "course_helpers.core.machine_load", "course_helpers.core.kernel_shutdown",
+                "course_helpers.core.mapped_files"},
+               "who holds a domain; the descendants a child ends when it exits; the program under a "
+               "child's supervisor; the other kernels of the same Jupyter server; the machine's CPU "
+               "time and this process tree's during a measurement; "
                "a kernel's id in its command line, and waiting until a shut-down kernel has ended; "
                "the files a process maps (its libraries, Fast DDS's shared memory)"),
     "IPython": ({"course_helpers.core.console"}, "a node's console under its notebook cell"),

@@ -12,18 +12,37 @@ from __future__ import annotations
 
 import ipaddress
 import os
+import socket
 
 
-def udp_sockets(pid: int | None = None) -> list[tuple[str, int]]:
-    """The local ``(address, port)`` of every UDP socket of process ``pid`` (this one by default).
+def udp_sockets() -> list[tuple[str, int]]:
+    """The local ``(address, port)`` of every bound UDP socket of this process.
 
-    Sorted by port, then address; an IPv6 address is given without brackets.
+    Sorted by port, then address; an IPv6 address is given without brackets. Each socket is asked
+    itself (``getsockname`` on a duplicate of its descriptor), so the answer is exact however many
+    sockets other processes open and close meanwhile. A listing read from ``/proc/net/udp`` is not:
+    the kernel writes that file in chunks, and when sockets before the reading point close between two
+    chunks, the next chunk starts further on and skips entries.
     """
-    import psutil
-
-    process = psutil.Process(os.getpid() if pid is None else pid)
-    found = {(c.laddr.ip, c.laddr.port) for c in process.net_connections(kind="udp") if c.laddr}
-    return sorted(found, key=lambda socket: (socket[1], socket[0]))
+    found = set()
+    for name in os.listdir("/proc/self/fd"):
+        try:
+            if not os.readlink(f"/proc/self/fd/{name}").startswith("socket:"):
+                continue
+            duplicate = os.dup(int(name))
+        except OSError:  # closed meanwhile, by another thread (the listing's own descriptor too)
+            continue
+        try:
+            sock = socket.socket(fileno=duplicate)  # owns the duplicate from here on
+        except OSError:
+            os.close(duplicate)
+            continue
+        with sock:  # closes the duplicate only
+            if sock.type == socket.SOCK_DGRAM and sock.family in (socket.AF_INET, socket.AF_INET6):
+                address, port = sock.getsockname()[:2]
+                if port:  # bound
+                    found.add((address, port))
+    return sorted(found, key=lambda entry: (entry[1], entry[0]))
 
 
 def is_loopback(address: str) -> bool:
