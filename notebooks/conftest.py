@@ -8,6 +8,9 @@ nodes and one executor thread. So each notebook runs exactly twice, and re-runni
 ``COURSE_NBVAL_RERUN=0`` to run the first pass only. ``--dist loadfile`` keeps a notebook on one
 worker (the cells also carry an xdist_group mark, which pytest 9 no longer lets pytest-xdist use).
 
+A failed cell's report ends with what the cell wrote to stderr, when it wrote anything: nbval itself
+only says that an unexpected stderr field appeared, not what was in it.
+
 Cells that need an optional part of the machine start with a line ``# COURSE_NEEDS: <part>``
 (``ros1``: ROS 1's rospy and rosmaster for the system Python; ``netns``: private network
 namespaces; ``cyclonedds``: Eclipse Cyclone DDS's Python binding; ``tshark``: Wireshark's
@@ -143,3 +146,17 @@ def _defaulting(options: dict):
     from collections import defaultdict
 
     return defaultdict(bool, options)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """Add the stderr text of a failed cell to its report (nbval names only the unexpected field)."""
+    outcome = yield
+    report = outcome.get_result()
+    outputs = getattr(item, "test_outputs", None) or []
+    if report.when != "call" or not report.failed:
+        return
+    text = "".join(out.get("text", "") for out in outputs
+                   if out.get("output_type") == "stream" and out.get("name") == "stderr")
+    if text:
+        report.sections.append(("what the cell wrote to stderr", text))
