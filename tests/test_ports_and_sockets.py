@@ -50,3 +50,23 @@ def test_the_autograder_starts_its_kernels_on_sockets_of_their_own(tmp_path):
     (tmp_path / "nbgrader_config.py").write_text("c = get_config()\n")
     config = grading_config(str(tmp_path))
     assert config.Execute.kernel_manager_class is AsyncPrivateSocketKernelManager
+
+
+def test_every_notebook_client_starts_its_kernel_on_sockets_of_its_own():
+    """A ``NotebookClient`` left with jupyter_client's TCP ports collided once in a fresh-clone CI run:
+    the release's run of chapter 10's instructor source died with "Address already in use"."""
+    import re
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parent.parent
+    calls = {}
+    sources = [path for folder in ("tools", "tests", "course_helpers")
+               for path in repo.glob(f"{folder}/**/*.py")]
+    for path in sources:
+        text = path.read_text(encoding="utf-8")
+        for match in re.finditer(r"NotebookClient\((?:[^()]|\([^()]*\))*\)", text):
+            calls[f"{path.relative_to(repo)}:{text.count(chr(10), 0, match.start()) + 1}"] = match.group(0)
+    assert len(calls) >= 4, calls  # the release, make execute and two working-copy tests at least
+    private = "kernel_manager_class=AsyncPrivateSocketKernelManager"
+    tcp = [where for where, call in calls.items() if private not in call]
+    assert not tcp, f"NotebookClient on TCP ports at {tcp}: pass {private}"

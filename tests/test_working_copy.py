@@ -26,6 +26,7 @@ import pytest
 from nbclient import NotebookClient
 
 from tools import working_copy
+from tools.kernels import AsyncPrivateSocketKernelManager
 
 REPO = Path(__file__).resolve().parent.parent
 TOOL = REPO / "tools" / "working_copy.py"
@@ -132,6 +133,7 @@ def test_edits_survive_a_course_update(clones, tmp_path):
         mine.id = STUDENT_CELL
         notebook.cells.insert(_index(notebook, WAITING) + 1, mine)
         client = NotebookClient(notebook, kernel_name="python3", timeout=60,
+                                kernel_manager_class=AsyncPrivateSocketKernelManager,
                                 resources={"metadata": {"path": str(work)}})
         with client.setup_kernel():
             client.execute_cell(mine, _index(notebook, STUDENT_CELL))
@@ -244,6 +246,7 @@ def test_an_older_copy_gets_the_reference_outputs_marked_and_keeps_the_students(
         mine.id = STUDENT_CELL
         notebook.cells.insert(_index(notebook, WAITING) + 1, mine)
         client = NotebookClient(notebook, kernel_name="python3", timeout=60,
+                                kernel_manager_class=AsyncPrivateSocketKernelManager,
                                 resources={"metadata": {"path": str(work)}})
         with client.setup_kernel():
             # their own cell first: the diagram's count (2) then differs from the reference run's (1)

@@ -92,6 +92,8 @@ def validate(chapter, course_dir: Path, build: Path, timeout: int) -> dict[str, 
     import nbformat
     from nbclient import NotebookClient
 
+    from tools.kernels import AsyncPrivateSocketKernelManager
+
     folder = course_dir / "source" / chapter.name
     nb = nbformat.read(folder / f"{chapter.name}.ipynb", as_version=4)
     saved = {k: os.environ.get(k) for k in ("PYTHONPATH", "ROS_DOMAIN_ID")}
@@ -99,6 +101,7 @@ def validate(chapter, course_dir: Path, build: Path, timeout: int) -> dict[str, 
     os.environ.pop("ROS_DOMAIN_ID", None)
     try:
         NotebookClient(nb, timeout=timeout, allow_errors=True, kernel_name="python3",
+                       kernel_manager_class=AsyncPrivateSocketKernelManager,  # no port to collide on
                        resources={"metadata": {"path": str(folder)}}).execute()
     finally:
         for key, value in saved.items():

@@ -15,6 +15,8 @@ from datetime import datetime
 import nbformat
 from nbclient import NotebookClient
 
+from tools.kernels import AsyncPrivateSocketKernelManager
+
 RUN_TIME_KEY = "course_run_s"  # a code cell's run time, rounded (tools/reading_path.py adds them up)
 
 
@@ -24,6 +26,7 @@ def run(notebook: nbformat.NotebookNode, cwd: str, timeout: int = 600) -> None:
     seconds rounded to 0.1, instead of nbclient's timestamps)."""
     os.environ.pop("ROS_DOMAIN_ID", None)
     client = NotebookClient(notebook, timeout=timeout, kernel_name="python3",
+                            kernel_manager_class=AsyncPrivateSocketKernelManager,  # no port to collide on
                             resources={"metadata": {"path": cwd}},
                             store_widget_state=True, record_timing=True)
     client.execute()

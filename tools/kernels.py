@@ -7,7 +7,9 @@ when nbval's six workers start their first notebooks). A kernel that listens on 
 folder of its own has nothing to collide on: 0 in 90 the same way.
 
 :class:`PrivateSocketKernelManager` is for code that drives a kernel itself (nbval, the tests);
-:class:`AsyncPrivateSocketKernelManager` for nbclient, which nbgrader's autograde uses.
+:class:`AsyncPrivateSocketKernelManager` for nbclient: nbgrader's autograde, the release's run of the
+instructor source, ``make execute`` and the tests that run notebooks. Every ``NotebookClient`` of the
+repository names it (a test checks).
 """
 
 from __future__ import annotations
