@@ -7,13 +7,7 @@ inside the image, with nothing to tell what was written.
 
 from __future__ import annotations
 
-import json
-import os
-import shutil
-import subprocess
-import sys
-
-from .conftest import REPO
+from .nbval_runs import run_nbval
 
 
 def _notebook(source: str) -> dict:
@@ -25,17 +19,8 @@ def _notebook(source: str) -> dict:
     }
 
 
-def _nbval(tmp_path, source: str) -> subprocess.CompletedProcess:
-    shutil.copy(os.path.join(REPO, "notebooks", "conftest.py"), tmp_path / "conftest.py")
-    (tmp_path / "cell.ipynb").write_text(json.dumps(_notebook(source)))
-    argv = [sys.executable, "-m", "pytest", "--nbval", "--nbval-current-env", "-p", "no:cacheprovider", "-q",
-            str(tmp_path / "cell.ipynb")]
-    return subprocess.run(argv, cwd=str(tmp_path), env={**os.environ, "COURSE_NBVAL_RERUN": "0"},
-                          capture_output=True, text=True, timeout=180)
-
-
 def test_a_cell_that_wrote_to_stderr_fails_with_what_it_wrote(tmp_path):
-    run = _nbval(tmp_path, "import sys\nprint('the port went away', file=sys.stderr)")
+    run = run_nbval(tmp_path, _notebook("import sys\nprint('the port went away', file=sys.stderr)"))
     assert run.returncode != 0, run.stdout[-3000:]
     assert "Unexpected output fields" in run.stdout, run.stdout[-3000:]
     assert "what the cell wrote to stderr" in run.stdout, run.stdout[-3000:]
@@ -43,6 +28,6 @@ def test_a_cell_that_wrote_to_stderr_fails_with_what_it_wrote(tmp_path):
 
 
 def test_a_quiet_cell_passes_and_adds_nothing(tmp_path):
-    run = _nbval(tmp_path, "x = 1")
+    run = run_nbval(tmp_path, _notebook("x = 1"))
     assert run.returncode == 0, run.stdout[-3000:]
     assert "what the cell wrote to stderr" not in run.stdout

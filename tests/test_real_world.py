@@ -31,6 +31,7 @@ from course_helpers.chapters.ch08b_lab.config import ExperimentConfig
 from course_helpers.core.errors import CourseError
 from course_helpers.core.waiting import poll_until
 
+from .nbval_runs import run_nbval
 from .shared_install import closed_to_others, ensure_user, shared_venv
 
 REPO = Path(__file__).resolve().parent.parent
@@ -293,17 +294,12 @@ NOTEBOOK_RULE = {
 
 
 def test_the_nbval_rule_skips_only_the_marked_cells_with_the_reason(tmp_path):
-    shutil.copy(REPO / "notebooks" / "conftest.py", tmp_path / "conftest.py")
-    (tmp_path / "needs.ipynb").write_text(json.dumps(NOTEBOOK_RULE))
-    env = {**os.environ, ros1_module.PYTHON_ENV: str(tmp_path / "no-python"), "COURSE_NBVAL_RERUN": "0"}
-    nbval = [sys.executable, "-m", "pytest", "--nbval", "--nbval-current-env", "-p", "no:cacheprovider", "-q"]
-    run = subprocess.run([*nbval, "-rs", str(tmp_path / "needs.ipynb")], cwd=str(tmp_path), env=env,
-                         capture_output=True, text=True, timeout=180)
+    env = {**os.environ, ros1_module.PYTHON_ENV: str(tmp_path / "no-python")}
+    run = run_nbval(tmp_path, NOTEBOOK_RULE, "-rs", env=env, name="needs.ipynb")
     assert "1 passed, 1 skipped" in run.stdout, run.stdout[-3000:]
     assert "needs ros1: ROS 1 is not installed" in run.stdout, run.stdout[-3000:]
-    (tmp_path / "needs.ipynb").write_text(json.dumps(NOTEBOOK_RULE).replace("NEEDS: ros1", "NEEDS: warp"))
-    run = subprocess.run([*nbval, str(tmp_path / "needs.ipynb")], cwd=str(tmp_path), env=env,
-                         capture_output=True, text=True, timeout=180)
+    warp = json.loads(json.dumps(NOTEBOOK_RULE).replace("NEEDS: ros1", "NEEDS: warp"))
+    run = run_nbval(tmp_path, warp, env=env, name="needs.ipynb")
     assert run.returncode != 0 and "warp is not a known part" in run.stdout + run.stderr
 
 
