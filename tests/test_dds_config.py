@@ -63,6 +63,20 @@ def test_the_tuned_settings_are_in_the_profile_and_the_defaults_are_not():
     assert "ros_discovery_info" not in defaults and "transport" not in defaults and "service" not in defaults
 
 
+def test_a_child_on_a_slot_tells_the_kernel_last():
+    """A child lists the discovery ports of participant ids 31 down to 0: the kernel (id 0, the first
+    participant of its domain) hears the child's announcement last, and its answer comes back after
+    the child listens (the module's docstring gives the measured difference)."""
+    import xml.etree.ElementTree as ET
+
+    from course_helpers.core.udp_sockets import discovery_port
+
+    root = ET.fromstring(dds_config.profile_xml(slot=5, domain_id=42))
+    ports = [int(port.text) for port in root.iterfind(".//{*}initialPeersList//{*}port")]
+    assert ports == [discovery_port(42, i) for i in range(dds_config.PEER_IDS - 1, -1, -1)], ports
+    assert ports[-1] == discovery_port(42, 0)
+
+
 def test_an_unknown_transport_is_named():
     with pytest.raises(ValueError, match=r"'SHM' and/or 'UDPv4', got \['TCPv4'\]"):
         dds_config.profile_xml(("TCPv4",))

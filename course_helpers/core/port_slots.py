@@ -23,7 +23,8 @@ right after a killed one: p90 0.16 s, against 3.17 s with Fast DDS's own choice.
 
 Only the ports move: a child on a slot still announces itself to the discovery ports of participant
 ids 0 to 31 on 127.0.0.1 (``PEER_IDS``), as every other participant does, listed port by port in its
-profile (left to Fast DDS, the list would start at the slot's own offset and miss the ids below it).
+profile (left to Fast DDS, the list would start at the slot's own offset and miss the ids below it),
+from id 31 down to 0: the kernel, on id 0, is told last and so heard at once (:mod:`.dds_config`).
 
 A child with a short lease (chapter 01) keeps its lease on its slot. A child whose environment names
 another profile (UDP only, Fast DDS's defaults, the user's own) keeps it; so does a child outside the
