@@ -2,14 +2,16 @@
 
 Run with ``make bench`` or ``.venv/bin/python benchmarks/discovery_latency.py [--runs 20]``.
 
-Three set-ups are measured in the same run, one after another, each in a ROS domain of its own
+Four set-ups are measured in the same run, one after another, each in a ROS domain of its own
 with localhost-only discovery:
 
-* ``course``: an anchor node and fresh probe processes started through the course's process
-  layer (``rt.spawn``), with the course's Fast DDS profile (``course_helpers/core/dds_config.py``:
-  announcements every 0.1 s, the graph reader's first request after 2 ms, a 300 ms shared-memory
-  health check);
-* ``fastdds-default``: the same course code, with Fast DDS's default discovery settings (3 s,
+* ``course``: the course as a notebook runs it. The anchor is a node of this process's runtime, as
+  the kernel's nodes are, and fresh probe processes are its children (``rt.spawn``), with the course's
+  Fast DDS profile (``course_helpers/core/dds_config.py``: announcements every 0.1 s, the graph
+  reader's first request after 2 ms, a 300 ms shared-memory health check, the kernel told last);
+* ``course-children``: the same profile, with the anchor in a child process too (two children that
+  meet, such as a talker and a listener started from a notebook);
+* ``fastdds-default``: as ``course-children``, with Fast DDS's default discovery settings (3 s,
   70 ms, 1000 ms) and rmw_fastrtps's own LOCALHOST transports;
 * ``plain-rclpy``: an anchor and probes written in plain rclpy (no course code at all), with
   Fast DDS's defaults: the baseline a student gets from a textbook script.
@@ -22,22 +24,32 @@ waits for, until
 * ``new sees anchor``: the new process lists the anchor's node;
 * ``sub matched``: the new node's subscription matches the anchor's publisher.
 
-**The floor.** A trace of the loopback traffic (the course set-up over UDP, decoded by tshark) shows
-where the time goes once the participant exists, a few ms after the call:
+**The floor.** A trace of the loopback traffic (decoded by tshark) shows where the time goes once the
+participant exists, a few ms after the call:
 
-1. the anchor answers the newcomer's first announcement at once; when the answer comes before the
-   newcomer listens (about half of the probes), the newcomer learns of the anchor only at the
-   anchor's next periodic announcement, 0 to ``ANNOUNCEMENT_S`` later;
-2. each side then asks the other's endpoint-discovery writers for their history, and Fast DDS answers
-   that request after a fixed 100 ms (``edp_nack_response_delay`` in ``EDPSimple.cpp``, not settable
-   in a profile): only after it does the newcomer know the anchor's graph reader;
+1. the new participant announces itself to the discovery ports of participant ids 0 to 31 (a course
+   child from 31 down to 0) before it listens (Fast DDS 2.14's ``RTPSParticipantImpl::enable()``
+   sends first and registers its receivers after), and each participant already running answers at
+   once, with its own announcement and a heartbeat of each endpoint-discovery writer;
+2. each side's endpoint-discovery readers ask the other's writers for their history, 10 ms after that
+   heartbeat, and Fast DDS answers after a fixed 100 ms (``edp_nack_response_delay`` in
+   ``EDPSimple.cpp``; 100 ms in Fast DDS 2.14.5, as the trace shows, since eProsima/Fast-DDS#5540
+   corrected a value that had read 100 us): only then does the newcomer know the anchor's graph
+   reader;
 3. the graph readers' requests (after ``GRAPH_ACKNACK_S``) bring each side the other's node list.
 
-So a node is seen about 0.13 s after the call when the first answer is heard, and up to one
-announcement period later when it is not: ``GOAL_S`` is that sum, with room for creating the
-participant. Earlier versions of this script counted from the moment the constructor *returned*, and
-sightings before it were counted as 0: whatever part of the 100 ms fell inside the constructor was
-hidden, and how much did depended on how long the constructor took to load its modules.
+That is about 0.13 s from the call. The kernel holds participant id 0, so a child tells it last and
+hears its answer: ``GOAL_S`` is that path with room for creating the participant. Between two children
+the answer can come back while the newcomer is still sending to the ports after the anchor's, and it
+is dropped, heartbeats and all. The newcomer then learns of the anchor at the anchor's next periodic
+announcement (0 to ``ANNOUNCEMENT_S``), and its readers ask only after their first-request delay
+(``EDP_FIRST_REQUEST_S``, a default no profile reaches), before the 100 ms answer: 0.21 to 0.30 s in
+all, which ``CHILDREN_GOAL_S`` allows.
+
+Earlier versions of this script counted from the moment the constructor *returned*, and sightings
+before it were counted as 0: whatever part of the 100 ms fell inside the constructor was hidden, and
+how much did depended on how long the constructor took to load its modules. Earlier versions also
+timed only two children, as ``course-children`` does.
 
 How long the call itself takes is reported too (``create node``); discovery runs beside it, in Fast DDS's
 threads.
@@ -63,7 +75,7 @@ import sys
 import threading
 import time
 
-from benchmarks.discovery_targets import PROBE_TIMEOUT_S, BeaconAnchor, probe_procedure
+from benchmarks.discovery_targets import PROBE_TIMEOUT_S, Beacon, BeaconAnchor, probe_procedure
 from course_helpers.core import processes
 from course_helpers.core.dds_config import ANNOUNCEMENT_S, PROFILE_ENV, default_discovery_env
 from course_helpers.core.domains import reserve_domain
@@ -72,7 +84,9 @@ from course_helpers.core.waiting import poll_until
 
 KEYS = ("anchor sees new", "new sees anchor", "sub matched")
 EDP_ANSWER_S = 0.1  # s; Fast DDS 2.14's fixed delay before endpoint discovery answers a request
-GOAL_S = round(EDP_ANSWER_S + ANNOUNCEMENT_S + 0.1, 3)  # s; course p90 from the call (see the floor)
+EDP_FIRST_REQUEST_S = 0.07  # s; Fast DDS's default first request of an endpoint reader (not settable)
+GOAL_S = round(EDP_ANSWER_S + 0.1, 3)  # s; course p90 from the call: the kernel's answer is heard
+CHILDREN_GOAL_S = round(ANNOUNCEMENT_S + EDP_FIRST_REQUEST_S + EDP_ANSWER_S + 0.1, 3)  # s; one may be lost
 
 
 # ---------------------------------------------------------------------- plain rclpy processes
@@ -134,6 +148,38 @@ def _plain_env(domain: int) -> dict:
 
 
 # ---------------------------------------------------------------------- the set-ups
+class KernelSetup:
+    """The course as a notebook runs it: the anchor is a node of this process's runtime (the kernel's
+    participant, the first of its domain), the probes are children started with ``rt.spawn``."""
+
+    label = "course"
+
+    def __init__(self):
+        self.anchor = get_runtime().add(Beacon)
+
+    def probe(self, index: int) -> dict:
+        rt = get_runtime()
+        name = f"/bench_probe_{index}"
+        child = rt.spawn("course_probe", probe_procedure, params={"index": index})
+        saw = None
+
+        def kernel_saw() -> bool:
+            nonlocal saw
+            if saw is None and name in rt.graph_nodes():
+                saw = time.monotonic()
+            return saw is not None
+
+        try:  # woken by each change of the graph; the probe stays until it is seen (PROBE_TIMEOUT_S)
+            rt.poll_until(lambda: kernel_saw() or not child.alive, PROBE_TIMEOUT_S + 30)
+            result = child.wait_for_report("result", PROBE_TIMEOUT_S + 30)
+        finally:
+            rt.stop_child(child.label)
+        return {**result, "anchor_saw": saw}
+
+    def stop(self) -> None:
+        get_runtime().remove(self.anchor)
+
+
 class CourseSetup:
     """An anchor child and probe children through the course's process layer."""
 
@@ -238,11 +284,15 @@ def measure(start_setup, runs: int) -> tuple[str, list[dict]]:
     return setup.label, rows
 
 
-def course_p90(runs: int) -> float:
-    """The headline figure: the course set-up's worst p90 of the three, over ``runs`` fresh processes
-    (a probe that missed counts as ``PROBE_TIMEOUT_S``)."""
-    _label, rows = measure(lambda: CourseSetup("course", {"ROS_DOMAIN_ID": reserve_domain()}), runs)
+def worst_p90(rows: list[dict]) -> float:
+    """A set-up's worst p90 of the three times (a probe that missed counts as ``PROBE_TIMEOUT_S``)."""
     return max(summarize(rows, key, PROBE_TIMEOUT_S)[1] for key in KEYS)
+
+
+def course_p90(runs: int) -> float:
+    """The headline figure: the course set-up's (the kernel and its children) worst p90 of the three,
+    over ``runs`` fresh processes."""
+    return worst_p90(measure(KernelSetup, runs)[1])
 
 
 def main(argv=None) -> int:
@@ -254,7 +304,8 @@ def main(argv=None) -> int:
     rt = get_runtime()
     course_domain, default_domain, plain_domain = (reserve_domain() for _ in range(3))
     phases = [  # one after another (see the module's docstring)
-        lambda: CourseSetup("course", {"ROS_DOMAIN_ID": course_domain}),
+        KernelSetup,
+        lambda: CourseSetup("course-children", {"ROS_DOMAIN_ID": course_domain}),
         lambda: CourseSetup("fastdds-default",
                             {"ROS_DOMAIN_ID": default_domain, **default_discovery_env(rt.log_dir)}),
         lambda: PlainSetup(plain_domain),
@@ -275,11 +326,18 @@ def main(argv=None) -> int:
             p90[label, key] = p90_value
             cells.append(f"{p50:.3f} / {p90_value:.3f}" + (f" ({misses} missed)" if misses else ""))
         print(f"{label:<17}{cells[0]:>16}" + "".join(f"  {c:>24}" for c in cells[1:]))  # never run together
-    course_worst = max(p90["course", k] for k in KEYS)
-    plain_worst = max(p90["plain-rclpy", k] for k in KEYS)
-    print(f"\ncourse p90 (worst of the three): {course_worst:.3f} s (goal <= {GOAL_S} s from the call: "
-          f"{'met' if course_worst <= GOAL_S else 'NOT met'}); plain rclpy p90: {plain_worst:.3f} s; "
-          f"ratio course / plain: {course_worst / plain_worst:.2f}")
+    worst = {label: max(p90[label, k] for k in KEYS) for label in rows}
+    course, children, plain = worst["course"], worst["course-children"], worst["plain-rclpy"]
+    late = sum(1 for row in rows["course"] if max(PROBE_TIMEOUT_S if row[k] is None else row[k] for k in KEYS)
+               > GOAL_S)
+    print(f"\ncourse p90 (the kernel and a child, worst of the three): {course:.3f} s (goal <= {GOAL_S} s "
+          f"from the call: {'met' if course <= GOAL_S else 'NOT met'}); plain rclpy p90: {plain:.3f} s; "
+          f"ratio course / plain: {course / plain:.2f}")
+    print(f"  {late} of {args.runs} children took longer than {GOAL_S} s: the kernel's first answer came "
+          "before the child listened (see the floor)")
+    print(f"two children p90: {children:.3f} s (goal <= {CHILDREN_GOAL_S} s: "
+          f"{'met' if children <= CHILDREN_GOAL_S else 'NOT met'}); "
+          f"ratio to plain rclpy: {children / plain:.2f}")
     processes.stop_all()
     return 0
 

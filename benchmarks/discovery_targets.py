@@ -18,12 +18,21 @@ TOPIC = "bench_beacon"
 PROBE_TIMEOUT_S = 6.0  # longer than two default announcement periods
 
 
-class BeaconAnchor(Node):
-    """The long-running side: publishes a beacon and reports each new node it sees, with the time."""
+class Beacon(Node):
+    """The long-running side, as a node of the benchmark's own runtime (the kernel's place): publishes
+    the beacon the probes' subscriptions match."""
 
     def __init__(self):
         super().__init__("bench_anchor")
         self.publisher = self.create_publisher(String, TOPIC, 10)
+
+
+class BeaconAnchor(Beacon):
+    """The long-running side in a child process: the beacon, and a report of each new node it sees,
+    with the time."""
+
+    def __init__(self):
+        super().__init__()
         self.seen: set[str] = set()
         self.timer = self.create_timer(0.002, self.look)  # s: how often the graph is read
 

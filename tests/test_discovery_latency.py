@@ -1,12 +1,11 @@
 """Discovery stays fast: a node in a new process is in another process's node list within 0.5 s.
 
-The figure is ``benchmarks/discovery_latency.py``'s headline (the course set-up's worst p90 of its three
-times, over 10 fresh processes, counted from the call that creates the node): 0.25-0.30 s on the 2-core
-development machine, of which 0.1 s is a fixed delay of Fast DDS's endpoint discovery (the benchmark's
-docstring gives the floor). A child that crashed
+The figure is ``benchmarks/discovery_latency.py``'s headline: the course set-up (the kernel's node and
+a child's) and its worst p90 of three times, over 10 fresh processes, counted from the call that
+creates the node. On the 2-core development machine it is 0.14-0.28 s, of which 0.1 s is a fixed delay
+of Fast DDS's endpoint discovery (the benchmark's docstring gives the floor). A child that crashed
 instead of leaving sent no goodbye, and the next process that took its participant id was heard only
-at the next heartbeat, 3 s later: the regression this test fails on (3.1 s).
-"""
+at the next heartbeat, 3 s later: the regression this test fails on (3.1 s)."""
 
 from __future__ import annotations
 
