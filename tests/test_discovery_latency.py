@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import pytest
 
-from benchmarks.discovery_latency import course_p90
+from course_helpers.core.dds_config import PROFILE_ENV
 from course_helpers.core.verdict import judge_timing
+
+from .conftest import run_python
 
 # measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
 pytestmark = pytest.mark.timing
@@ -21,9 +23,19 @@ BOUND_S = 0.5
 RUNS = 10
 
 
-def test_a_node_in_a_new_process_is_seen_within_half_a_second(rt):
+def course_p90_in_a_new_process() -> float:
+    """The headline, measured by a new Python whose first participant is the course's kernel, as a
+    notebook's is. A test worker's own runtime is not: Fast DDS reads its profile once per process, with
+    the first participant, and earlier tests in the worker may have made participants of their own."""
+    done = run_python(f"from benchmarks.discovery_latency import course_p90; print(course_p90({RUNS}))",
+                      timeout=300, env={PROFILE_ENV: ""})  # empty: the new process writes the course's own
+    assert done.returncode == 0, done.stderr[-3000:]
+    return float(done.stdout.strip().splitlines()[-1])
+
+
+def test_a_node_in_a_new_process_is_seen_within_half_a_second():
     verdict, _ = judge_timing(
         f"a node in a new process is seen in another process's node list within {BOUND_S} s (p90 of {RUNS})",
-        lambda: course_p90(RUNS), lambda p90: p90 <= BOUND_S, show=lambda p90: f"p90 {p90:.3f} s")
+        course_p90_in_a_new_process, lambda p90: p90 <= BOUND_S, show=lambda p90: f"p90 {p90:.3f} s")
     print(verdict.line())
     verdict.raise_unless_passed()
