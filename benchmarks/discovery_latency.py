@@ -263,6 +263,11 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
 
 
+def slowest(row: dict) -> float:
+    """A probe's longest of the three times (one that never happened counts as ``PROBE_TIMEOUT_S``)."""
+    return max(PROBE_TIMEOUT_S if row[key] is None else row[key] for key in KEYS)
+
+
 def summarize(rows: list[dict], key: str, timeout: float) -> tuple[float, float, int]:
     """(p50, p90, misses); a probe that never saw it counts as the timeout."""
     values = [row[key] if row[key] is not None else timeout for row in rows]
@@ -317,19 +322,16 @@ def main(argv=None) -> int:
     print(f"\nDiscovery of a node in a new process, {args.runs} fresh processes per set-up "
           "(seconds from the call that creates the node; p50 / p90):")
     print(f"{'set-up':<17}{'create node':>16}" + "".join(f"  {k:>24}" for k in KEYS))
-    p90 = {}
     for label, data in rows.items():
         cells = [f"{statistics.median(r['create node'] for r in data):.3f} / "
                  f"{percentile([r['create node'] for r in data], 0.9):.3f}"]
         for key in KEYS:
-            p50, p90_value, misses = summarize(data, key, PROBE_TIMEOUT_S)
-            p90[label, key] = p90_value
-            cells.append(f"{p50:.3f} / {p90_value:.3f}" + (f" ({misses} missed)" if misses else ""))
+            p50, p90, misses = summarize(data, key, PROBE_TIMEOUT_S)
+            cells.append(f"{p50:.3f} / {p90:.3f}" + (f" ({misses} missed)" if misses else ""))
         print(f"{label:<17}{cells[0]:>16}" + "".join(f"  {c:>24}" for c in cells[1:]))  # never run together
-    worst = {label: max(p90[label, k] for k in KEYS) for label in rows}
+    worst = {label: worst_p90(data) for label, data in rows.items()}
     course, children, plain = worst["course"], worst["course-children"], worst["plain-rclpy"]
-    late = sum(1 for row in rows["course"] if max(PROBE_TIMEOUT_S if row[k] is None else row[k] for k in KEYS)
-               > GOAL_S)
+    late = sum(1 for row in rows["course"] if slowest(row) > GOAL_S)
     print(f"\ncourse p90 (the kernel and a child, worst of the three): {course:.3f} s (goal <= {GOAL_S} s "
           f"from the call: {'met' if course <= GOAL_S else 'NOT met'}); plain rclpy p90: {plain:.3f} s; "
           f"ratio course / plain: {course / plain:.2f}")

@@ -19,8 +19,8 @@ PROBE_TIMEOUT_S = 6.0  # longer than two default announcement periods
 
 
 class Beacon(Node):
-    """The long-running side, as a node of the benchmark's own runtime (the kernel's place): publishes
-    the beacon the probes' subscriptions match."""
+    """The long-running side: publishes the beacon the probes' subscriptions match (as is, it is the
+    node the benchmark's own runtime adds in the kernel's place)."""
 
     def __init__(self):
         super().__init__("bench_anchor")
