@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
+import time
 
 import psutil
 import pytest
@@ -232,6 +234,31 @@ def test_a_failing_callback_is_reported_and_others_keep_running(rt):
     listener = rt.add(Listener)
     rt.wait_until(lambda: len(listener.heard) >= 3 and len(rt.errors) > errors_before, 5)
     assert "boom" in rt.errors[-1]
+
+
+def test_subscriptions_destroyed_from_the_notebooks_thread_are_no_error(rt):
+    """A measurement written the idiomatic way creates subscriptions, counts, and destroys them from
+    the notebook's thread while the executor spins; rclpy's wait can meet one half destroyed
+    (ros2/rclpy#1142). Fine thread switching makes that race happen hundreds of times in 300 rounds
+    (seen: 243 internal errors before the executors waited again instead)."""
+    rt.add(Talker, rate_hz=1000, console=False)
+    meter = rt.node("meter", console=False)
+    errors_before = len(rt.errors)
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    try:
+        for _ in range(300):
+            subscriptions = [meter.create_subscription(String, "chatter", lambda _m: None, 100)
+                             for _ in range(10)]
+            time.sleep(0.001)
+            for subscription in subscriptions:
+                meter.destroy_subscription(subscription)
+    finally:
+        sys.setswitchinterval(switch)
+    heard = []
+    meter.create_subscription(String, "chatter", heard.append, 10)
+    rt.wait_until(lambda: heard, HANG_S, "a message after the destroyed subscriptions")
+    assert rt.errors[errors_before:] == []
 
 
 def test_show_status_lists_a_textbook_node_of_the_default_context_as_not_the_courses(rt, capsys):

@@ -22,7 +22,6 @@ from __future__ import annotations
 import os
 
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions, get_current_signal_handlers_options, uninstall_signal_handlers
@@ -31,7 +30,7 @@ from rclpy.utilities import get_default_context, try_shutdown
 from course_helpers.chapters.ch07_dds import ReportingListener, heard_lines
 from course_helpers.checks import CheckReport
 from course_helpers.core.domains import reserve_spare_domain
-from course_helpers.core.executors import SpinThread
+from course_helpers.core.executors import SingleThreaded, SpinThread
 from course_helpers.core.sim_clock import SimClock
 from course_helpers.core.waiting import poll_until
 from course_helpers.notebook.interrupts import rclpys_own_signal_default
@@ -218,7 +217,7 @@ def _check_rate(report: CheckReport, node, context, errors: list) -> bool:
 
 def _check_team_hears(report: CheckReport, rt, node, context, team_domain: int, errors: list) -> None:
     """A listener process in the team's domain hears the robot: an event a hang bound only limits."""
-    executor = SingleThreadedExecutor(context=context)
+    executor = SingleThreaded(context=context)
     executor.add_node(node)
     spinner = SpinThread(executor, "private-robot", errors.append).start()
     try:

@@ -21,6 +21,7 @@ import contextlib
 import threading
 from collections.abc import Callable
 
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import (
     ConditionReachedException,
     ExternalShutdownException,
@@ -36,6 +37,7 @@ from course_helpers.core.waiting import changes
 
 ErrorHandler = Callable[[BaseException], None]
 RENEW_TURNS = 10_000  # a plain executor's stop future collects one done callback per turn: renewed this often
+DESTROYED_RETRIES = 100  # waits in a row that may meet an entity destroyed meanwhile, before it is an error
 
 
 class StopSignal:
@@ -63,6 +65,29 @@ class StopSignal:
         with self._lock:
             if not self._future.done():
                 self._future.set_result(None)
+
+
+class OutlivesDestroyedEntities:
+    """Executor mix-in: a subscription (or any entity) destroyed from another thread while the executor
+    builds or reads its wait set costs a new wait, not an error.
+
+    ``Node.destroy_subscription()`` may be called from any thread (the notebook's, while the executor
+    spins in its own), and a measurement written the idiomatic way does exactly that. rclpy 7.1's wait,
+    and 8.0's, lists the node's waitables first and uses them later: a subscription's event handler
+    destroyed between the two makes ``add_to_wait_set`` raise ``InvalidHandle`` (its ``__enter__`` fails
+    too, and is skipped, but the handler stays in the list). Reading a ready entity after the wait can
+    raise the same way (ros2/rclpy#1142). The entity is gone, so nothing of it is lost: the generator
+    that raised has ended, and the next call waits afresh. The executor is woken first, because a guard
+    condition the failed wait took is handed out only after a wait returns.
+    """
+
+    def wait_for_ready_callbacks(self, *args, **kwargs):
+        for _ in range(DESTROYED_RETRIES):
+            try:
+                return super().wait_for_ready_callbacks(*args, **kwargs)
+            except InvalidHandle:
+                self.wake()
+        return super().wait_for_ready_callbacks(*args, **kwargs)  # still failing: not a passing race
 
 
 class WakeOnce:
@@ -172,11 +197,19 @@ class RoutedCallbacks(WakeOnce):
             self._on_callback_error(target, where, exc)
 
 
-class QuietSingleThreadedExecutor(WakeOnce, SingleThreadedExecutor):
+class SingleThreaded(OutlivesDestroyedEntities, SingleThreadedExecutor):
+    """rclpy's single-threaded executor for the course's threads (:class:`OutlivesDestroyedEntities`)."""
+
+
+class MultiThreaded(OutlivesDestroyedEntities, MultiThreadedExecutor):
+    """rclpy's multi-threaded executor for the course's threads (:class:`OutlivesDestroyedEntities`)."""
+
+
+class QuietSingleThreadedExecutor(WakeOnce, SingleThreaded):
     """A single-threaded executor for a long-lived thread of the runtime's own (the /rosout reader)."""
 
 
-class CourseSingleThreadedExecutor(RoutedCallbacks, SingleThreadedExecutor):
+class CourseSingleThreadedExecutor(RoutedCallbacks, SingleThreaded):
     """The runtime's default executor: one thread, callbacks routed to their consoles."""
 
     def __init__(self, context, console_of_node, router, on_callback_error):
@@ -184,7 +217,7 @@ class CourseSingleThreadedExecutor(RoutedCallbacks, SingleThreadedExecutor):
         self._setup_routing(console_of_node, router, on_callback_error)
 
 
-class CourseMultiThreadedExecutor(MultiThreadedExecutor):
+class CourseMultiThreadedExecutor(MultiThreaded):
     """Multi-threaded executor (chapter 02); a callback's error is reported, not raised."""
 
     def __init__(self, context, num_threads: int, on_callback_error):
@@ -201,10 +234,11 @@ class CourseMultiThreadedExecutor(MultiThreadedExecutor):
 
 
 def plain_executor(kind: str, context, threads: int = 2):
-    """A plain rclpy executor of ``kind`` 'single' or 'multi' (for measurements that compare them)."""
+    """rclpy's executor of ``kind`` 'single' or 'multi', with no routing (for measurements that compare
+    them); an entity destroyed from another thread is no error (:class:`OutlivesDestroyedEntities`)."""
     if kind == "single":
-        return SingleThreadedExecutor(context=context)
-    return MultiThreadedExecutor(num_threads=threads, context=context)
+        return SingleThreaded(context=context)
+    return MultiThreaded(num_threads=threads, context=context)
 
 
 def finish_pending_callbacks(executor) -> None:

@@ -23,11 +23,12 @@ Time starts at :data:`START_S` (a ROS time far from both zero and the wall clock
 
 from __future__ import annotations
 
-from rclpy.executors import SingleThreadedExecutor, TimeoutException
+from rclpy.executors import TimeoutException
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from course_helpers.core.errors import CourseError
+from course_helpers.core.executors import SingleThreaded
 from course_helpers.core.node_hook import outside_builds
 from course_helpers.core.waiting import wait_until
 
@@ -60,7 +61,7 @@ class SimClock:
             self.node = Node(name, context=context, enable_rosout=False, start_parameter_services=False)
         self._publisher = self.node.create_publisher(
             Clock, CLOCK_TOPIC, QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
-        self._executor = SingleThreadedExecutor(context=context)
+        self._executor = SingleThreaded(context=context)
         self._ns = round(start_s * 1e9)
         self.errors: list[BaseException] = []
         self.driven: list = []
