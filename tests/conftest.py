@@ -10,6 +10,7 @@ import textwrap
 import pytest
 
 from course_helpers import get_runtime, shutdown_runtime
+from course_helpers.core import verdict
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -28,6 +29,30 @@ def rt():
 def _stop_runtime_at_end():
     yield
     shutdown_runtime()
+
+
+@pytest.fixture(autouse=True)
+def _time_is_judged_in_the_timing_stage(request):
+    """A test that judges a measurement with the timing verdict must be marked 'timing'.
+
+    The logic stage runs five workers on two cores; a measurement there may stay inconclusive for
+    lack of CPU, which fails the test for a reason that is not its own. So whatever judges time in a
+    test that is not marked fails at once, on any machine, naming the statement it judged. The
+    verdict's own tests that make the machine busy on purpose are marked 'makes_load' instead: in
+    the timing stage their busy loops would spoil the measurements of the worker beside them.
+    """
+    if any(request.node.get_closest_marker(mark) for mark in ("timing", "makes_load")):
+        yield
+        return
+    judged: list[str] = []
+    verdict.TIMING_WATCHERS.append(judged.append)
+    try:
+        yield
+    finally:
+        verdict.TIMING_WATCHERS.remove(judged.append)
+    if judged:
+        pytest.fail(f"this test judges time ({judged[0]!r}) but is not marked 'timing': mark it "
+                    "(@pytest.mark.timing) so that it runs in make test's timing stage", pytrace=False)
 
 
 def run_python(code: str, timeout: float = 60, env: dict | None = None):

@@ -299,6 +299,7 @@ THROUGHPUT_WRONG = [
 ]
 
 
+@pytest.mark.timing  # the measured criteria are judged by the timing verdict
 def test_throughput_checker_accepts_the_reference_and_every_criterion_has_a_wrong_solution(rt):
     report = check_throughput(solution.expected_load, solution.measure_load, rt)
     assert report.passed, report.summary()
@@ -306,6 +307,7 @@ def test_throughput_checker_accepts_the_reference_and_every_criterion_has_a_wron
     assert not rt.children()
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("expected_load, measure_load, failing", THROUGHPUT_WRONG)
 def test_throughput_checker_fails_each_criterion_on_a_wrong_solution(rt, expected_load, measure_load,
                                                                      failing):
@@ -315,6 +317,7 @@ def test_throughput_checker_fails_each_criterion_on_a_wrong_solution(rt, expecte
     assert not rt.children()
 
 
+@pytest.mark.timing  # the measured scenario runs (and is judged) even when the functions raise
 def test_throughput_checker_reports_exceptions_as_failures(rt):
     def not_done(*_args):
         raise NotImplementedError("TODO")

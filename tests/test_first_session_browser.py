@@ -98,6 +98,14 @@ class Terminal:
                 return
             self.output += data.decode(errors="replace")
 
+    def wait_for_exit(self, timeout: float) -> int:
+        """Wait for the process to end, then for the reader to take the last of its output: the pty
+        reads end-of-file once no process holds it, which may come after the exit is seen (a CI run
+        missed "JupyterLab stopped." when the output was read right after the wait)."""
+        code = self.process.wait(timeout=timeout)
+        self._reader.join(timeout=10)
+        return code
+
     def press_ctrl_c(self) -> None:
         os.write(self.master, b"\x03")  # the terminal sends SIGINT to its foreground process group
 
@@ -160,9 +168,9 @@ def test_a_students_first_session(fresh_clone):
         kernels = _server(runtime).children(recursive=True)
         assert len(kernels) >= 2, kernels  # 00's and 08b's kernels (and the lab's processes, if any)
         terminal.press_ctrl_c()
-        terminal.process.wait(timeout=90)
+        code = terminal.wait_for_exit(90)
         print(terminal.output[-400:])
-        assert terminal.process.returncode == 0, terminal.output
+        assert code == 0, terminal.output
         assert "JupyterLab stopped." in terminal.output and "Interrupt" not in terminal.output
         assert not [p for p in kernels if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
     finally:

@@ -75,6 +75,7 @@ def test_a_verdict_by_construction_ignores_the_load():
     assert claim("every sample arrived", True, "60 of 60").passed
 
 
+@pytest.mark.makes_load  # busy loops in the timing stage would spoil the measurements beside them
 def test_a_timing_verdict_passes_when_the_bound_holds_whatever_the_load():
     with busy_loops(2):
         verdict, value = judge_timing("the answer comes within 1 s", lambda: 0.01, lambda s: s < 1.0,
@@ -83,6 +84,7 @@ def test_a_timing_verdict_passes_when_the_bound_holds_whatever_the_load():
     assert verdict.line() == "\u2714 the answer comes within 1 s: 0.01 s"
 
 
+@pytest.mark.makes_load
 def test_a_missed_bound_on_a_busy_machine_is_inconclusive_after_its_retries_and_says_why():
     measurements = []
 

@@ -32,6 +32,7 @@ ATTEMPTS = 3  # a timing measurement that fails on a busy machine is made this o
 MARKS = {PASS: "\u2714", FAIL: "\u2718", INCONCLUSIVE: "inconclusive (busy machine):"}
 
 T = TypeVar("T")
+TIMING_WATCHERS: list[Callable[[str], None]] = []  # told each timing statement judged (tests' stage check)
 
 
 class VerdictError(AssertionError):
@@ -115,6 +116,8 @@ def judge_timing(statement: str, measure: Callable[[], T], holds: Callable[[T], 
     """
     if attempts < 1:
         raise ValueError(f"attempts must be at least 1, got {attempts!r}")
+    for watcher in list(TIMING_WATCHERS):
+        watcher(statement)
     for attempt in range(1, attempts + 1):
         meter = LoadMeter()
         value = measure()
