@@ -215,6 +215,18 @@ def test_an_unclean_ctrl_c_is_shown_with_the_processes_last_words(rt):
 
 
 
+def test_a_node_that_ignores_ctrl_c_is_shown_still_running_with_its_last_words(rt):
+    ignores = _changed(MODULE, MAIN_BODY, (
+        "rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)\n"
+        "    signal.signal(signal.SIGINT, lambda *_: print('Ctrl+C ignored', flush=True))\n"
+        "    node = Heartbeat()\n    rclpy.spin(node)\n"))
+    imports = _changed(MODULE, "import rclpy\n", "import signal\n\nimport rclpy\n"
+                       "from rclpy.signals import SignalHandlerOptions\n")
+    stop = _criterion(check_package(ignores(imports(reference_package()))), CTRL_C_CRITERION)
+    assert not stop.passed, stop.detail
+    assert stop.detail.startswith("still running") and "Ctrl+C ignored" in stop.detail, stop.detail
+
+
 def _spins_on_after_shutdown(error: str, catches: str = "ExternalShutdownException"):
     """The reference, except that Ctrl+C leaves rclpy's handler alone (no KeyboardInterrupt) and main()
     goes on spinning after ExternalShutdownException, as spin() does when the handler ends the context

@@ -14,6 +14,7 @@ Skipped, with the install line, where the ``cyclonedds`` package is missing. (No
 import annotations`` here: the binding reads the IDL struct's field types from its annotations.)
 """
 
+import time
 from dataclasses import dataclass
 
 import pytest
@@ -24,6 +25,7 @@ from std_msgs.msg import String
 
 from course_helpers import CourseError
 from course_helpers.chapters.ch07_dds import cyclone
+from course_helpers.core.udp_sockets import udp_sockets
 from course_helpers.nodes.chatter import Listener, Talker
 from course_helpers.viz.snapshot import BARE_DDS_NODE, graph_snapshot
 
@@ -63,34 +65,61 @@ class BestEffortTalker(Node):
         self.incompatible.append(qos_policy_name_from_kind(event.last_policy_kind))
 
 
-def take(reader, publisher, topic: str, rt):
+def take(reader, publisher, topic: str, rt, trace: str):
     """One sample from a Cyclone reader, waiting at most TIMEOUT_S (a hang bound). If none came, the
-    failure says which side had matched which: Cyclone's reader, the rclpy publisher and the kernel's
-    graph (seen once beside a busy core: 15 s without a sample while discovery worked)."""
+    failure says which side had matched which (Cyclone's reader, the rclpy publisher, the kernel's
+    graph), how long it waited, the process's UDP ports and what Cyclone's trace says of participant
+    discovery (seen twice in the logic stage: nothing matched on either side within 15 s)."""
+    start = time.monotonic()
     try:
         return reader.take_one(timeout=duration(seconds=TIMEOUT_S))
     except StopIteration:
+        waited = time.monotonic() - start
         matched = reader.get_subscription_matched_status()
         listed = [i.node_name for i in rt.graph.get_subscriptions_info_by_topic(topic)]
         raise AssertionError(
-            f"no sample on {topic} within {TIMEOUT_S:g} s: Cyclone's reader matched "
+            f"no sample on {topic} after {waited:.1f} s: Cyclone's reader matched "
             f"{matched.current_count} writer(s) ({matched.total_count} ever); the rclpy publisher matched "
-            f"{publisher.get_subscription_count()} reader(s); the kernel's graph lists readers of {listed}"
+            f"{publisher.get_subscription_count()} reader(s); the kernel's graph lists readers of {listed}; "
+            f"this process's UDP ports {sorted({port for _, port in udp_sockets()})}\n"
+            f"{spdp_summary(trace)}"
         ) from None
 
 
+def spdp_summary(trace: str, last: int = 12) -> str:
+    """What Cyclone's trace says of participant discovery: its ports, how many participant
+    announcements (SPDP) it received and sent, and the last few of them."""
+    try:
+        with open(trace, encoding="utf-8", errors="replace") as text:
+            lines = text.read().splitlines()
+    except OSError as exc:
+        return f"no Cyclone DDS trace ({exc})"
+    ports = [line.split(": ", 1)[-1] for line in lines if "Unicast Ports:" in line]
+    received = [line for line in lines if " SPDP ST" in line]
+    sent = [line for line in lines if "xmit spdp" in line or "ddsi_spdp_write" in line]
+    recent = sorted(received + sent)[-last:]  # each line starts with its time
+    return (f"Cyclone DDS trace {trace}: {'; '.join(ports) or 'no ports'}; {len(received)} SPDP received "
+            f"({sum(' NEW ' in line for line in received)} new participants), {len(sent)} sent; the last:\n"
+            + "\n".join(line[:200] for line in recent))
+
+
 @pytest.fixture
-def participant(rt):
-    cyclone.cyclone_domain(rt)
+def trace(tmp_path) -> str:
+    return str(tmp_path / "cyclone_trace.log")
+
+
+@pytest.fixture
+def participant(rt, trace):
+    cyclone.cyclone_domain(rt, trace_file=trace)
     yield DomainParticipant(rt.domain.domain_id)
     cyclone.close_cyclone()
 
 
-def test_cyclone_and_rclpy_exchange_messages_both_ways(rt, participant):
+def test_cyclone_and_rclpy_exchange_messages_both_ways(rt, participant, trace):
     topic = Topic(participant, "rt/chatter", String_)  # ROS's /chatter, as the DDS names it
     reader = DataReader(participant, topic, qos=Qos(Policy.History.KeepLast(10)))
     talker = rt.add(Talker, rate_hz=20.0, console=False)
-    heard = [take(reader, talker.publisher, "/chatter", rt).data for _ in range(3)]
+    heard = [take(reader, talker.publisher, "/chatter", rt, trace).data for _ in range(3)]
     assert all(text.startswith("hello ") for text in heard), heard
 
     listener = rt.add(Listener, name="listener", console=False)
@@ -103,12 +132,12 @@ def test_cyclone_and_rclpy_exchange_messages_both_ways(rt, participant):
     assert [h for h in listener.heard if "Cyclone" in h] == [f"hello from Cyclone DDS {i}" for i in range(3)]
 
 
-def test_a_reliable_cyclone_reader_never_matches_a_best_effort_rclpy_writer(rt, participant):
+def test_a_reliable_cyclone_reader_never_matches_a_best_effort_rclpy_writer(rt, participant, trace):
     topic = Topic(participant, "rt/sensor", String_)
     reliable = DataReader(participant, topic, qos=Qos(Policy.Reliability.Reliable(duration(seconds=1))))
     best_effort = DataReader(participant, topic, qos=Qos(Policy.Reliability.BestEffort))
     talker = rt.add(BestEffortTalker, "sensor", console=False)
-    got = [take(best_effort, talker.publisher, "/sensor", rt) for _ in range(3)]  # the sentinel
+    got = [take(best_effort, talker.publisher, "/sensor", rt, trace) for _ in range(3)]  # the sentinel
     rt.wait_until(lambda: talker.incompatible, TIMEOUT_S, "the incompatible-QoS event on the ROS side")
     assert len(got) == 3
     assert reliable.get_subscription_matched_status().current_count == 0

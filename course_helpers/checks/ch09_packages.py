@@ -220,7 +220,8 @@ def _listen_and_stop(report: CheckReport, rt, child, topic: str, msg_type: str) 
     said = [line for line in child.log().splitlines() if line.strip()]
     race = code == 1 and rclpy_shutdown_race(said)
     if code is None:
-        detail = f"still running after {CTRL_C_EXIT_S:g} s"
+        last = f"; its last output: {' | '.join(said[-3:])}" if said else "; it printed nothing"
+        detail = f"still running {CTRL_C_EXIT_S:g} s after Ctrl+C{last}"
     elif race:
         detail = ("exit code 1 from rclpy's own shutdown race, not from your code: its signal handler "
                   "ended the context while rclpy.spin() made its wait set (ros2/ros2cli#854)")

@@ -35,6 +35,7 @@ Cyclone's lease runs out (10 s by default) and Fast DDS drops the silent partici
 from __future__ import annotations
 
 import atexit
+from xml.sax.saxutils import escape
 
 from course_helpers.core.dds_config import PEER_IDS
 from course_helpers.core.errors import CourseError
@@ -56,8 +57,14 @@ def cyclone_unavailable_reason() -> str | None:
     return None
 
 
-def cyclone_config(max_index: int = PEER_IDS - 1) -> str:
-    """The Cyclone DDS configuration (XML) that finds the course's participants (module docstring)."""
+def cyclone_config(max_index: int = PEER_IDS - 1, trace_file: str | None = None) -> str:
+    """The Cyclone DDS configuration (XML) that finds the course's participants (module docstring).
+
+    With ``trace_file``, Cyclone DDS also writes its most detailed trace there (every discovery
+    message it sends and receives): what a test reads when discovery did not happen.
+    """
+    tracing = [f"  <Tracing><Verbosity>finest</Verbosity><OutputFile>{escape(trace_file)}</OutputFile>"
+               "</Tracing>"] if trace_file else []
     return "\n".join([
         '<CycloneDDS><Domain Id="any">',
         '  <General><Interfaces><NetworkInterface name="lo"/></Interfaces>',
@@ -65,15 +72,17 @@ def cyclone_config(max_index: int = PEER_IDS - 1) -> str:
         "  <Discovery><ParticipantIndex>auto</ParticipantIndex>",
         f"             <MaxAutoParticipantIndex>{int(max_index)}</MaxAutoParticipantIndex>",
         f'             <Peers><Peer address="{PEER_ADDRESS}"/></Peers></Discovery>',
+        *tracing,
         "</Domain></CycloneDDS>"])
 
 
-def cyclone_domain(rt) -> int:
+def cyclone_domain(rt, trace_file: str | None = None) -> int:
     """Create (again) the kernel's Cyclone DDS domain for ``rt``'s ROS domain; its id.
 
     Whatever Cyclone DDS entities this kernel made before are deleted first. Create participants
     with ``DomainParticipant(rt.domain.domain_id)`` after it. Raises CourseError (one line with the
     install) without the binding, or if a participant of that id exists that this did not set up.
+    ``trace_file``: where Cyclone DDS writes its trace (:func:`cyclone_config`); None for no trace.
     """
     reason = cyclone_unavailable_reason()
     if reason is not None:
@@ -84,7 +93,7 @@ def cyclone_domain(rt) -> int:
     close_cyclone()
     domain_id = rt.domain.domain_id
     try:
-        _domains.append(Domain(domain_id, cyclone_config()))
+        _domains.append(Domain(domain_id, cyclone_config(trace_file=trace_file)))
     except DDSException as exc:
         raise CourseError(
             f"Cyclone DDS already has domain {domain_id} in this kernel, made with its default settings by "
