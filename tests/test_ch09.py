@@ -37,6 +37,7 @@ from course_helpers.checks.ch09_packages import (
     TOPIC,
     check_package,
 )
+from course_helpers.core.dds_config import LEASE_S
 from course_helpers.nodes import Talker
 from course_helpers.solutions.ch09_packages import reference_package
 from tools.grading import source as grading_source
@@ -225,6 +226,8 @@ def test_a_node_that_ignores_ctrl_c_is_shown_still_running_with_its_last_words(r
     stop = _criterion(check_package(ignores(imports(reference_package()))), CTRL_C_CRITERION)
     assert not stop.passed, stop.detail
     assert stop.detail.startswith("still running") and "Ctrl+C ignored" in stop.detail, stop.detail
+    # the checker then killed it, so it said no goodbye: the kernel drops its node when its lease ends
+    rt.wait_until(lambda: NODE not in rt.graph_nodes(), 3 * LEASE_S, "the killed node to leave the graph")
 
 
 def _spins_on_after_shutdown(error: str, catches: str = "ExternalShutdownException"):
