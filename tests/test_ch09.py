@@ -215,7 +215,6 @@ def test_an_unclean_ctrl_c_is_shown_with_the_processes_last_words(rt):
     assert "its last output:" in stop.detail and "KeyboardInterrupt" in stop.detail, stop.detail
 
 
-
 def test_a_node_that_ignores_ctrl_c_is_shown_still_running_with_its_last_words(rt):
     ignores = _changed(MODULE, MAIN_BODY, (
         "rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)\n"

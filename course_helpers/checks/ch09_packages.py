@@ -219,15 +219,14 @@ def _listen_and_stop(report: CheckReport, rt, child, topic: str, msg_type: str) 
         code = None
     said = [line for line in child.log().splitlines() if line.strip()]
     race = code == 1 and rclpy_shutdown_race(said)
+    last = f"; its last output: {' | '.join(said[-3:])}" if said else ""
     if code is None:
-        last = f"; its last output: {' | '.join(said[-3:])}" if said else "; it printed nothing"
-        detail = f"still running {CTRL_C_EXIT_S:g} s after Ctrl+C{last}"
+        detail = f"still running {CTRL_C_EXIT_S:g} s after Ctrl+C{last or '; it printed nothing'}"
     elif race:
         detail = ("exit code 1 from rclpy's own shutdown race, not from your code: its signal handler "
                   "ended the context while rclpy.spin() made its wait set (ros2/ros2cli#854)")
     else:
-        last = f"; its last output: {' | '.join(said[-3:])}" if code and said else ""
-        detail = f"exit code {code}{last}"
+        detail = f"exit code {code}{last if code else ''}"
     report.add(CTRL_C_CRITERION, code == 0 or race, detail,
                "Catch KeyboardInterrupt (and rclpy.executors.ExternalShutdownException) around "
                "rclpy.spin(), then destroy the node and call rclpy.try_shutdown().")
