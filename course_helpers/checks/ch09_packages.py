@@ -26,9 +26,14 @@ from course_helpers.chapters.ch09_packages import (
     wait_for_process_node,
 )
 from course_helpers.checks import CheckReport
+from course_helpers.core.dds_config import LEASE_S
 from course_helpers.core.errors import CourseError, WaitTimeout
 
 CTRL_C_EXIT_S = 5.0  # s a node may take to leave after Ctrl+C
+# A process that ends without deleting its participant (killed, as this checker kills a node that
+# ignores Ctrl+C) keeps its node in other processes' graphs until its lease ends: LEASE_S after the
+# last announcement they heard. Fast DDS checks leases on its event thread, so allow half a lease more.
+LEFTOVER_WAIT_S = 1.5 * LEASE_S
 
 PACKAGE = "robot_heartbeat"
 EXECUTABLE = "heartbeat"
@@ -142,11 +147,15 @@ def _static_checks(report: CheckReport, files: dict, package: str) -> bool:
 
 def _run_and_listen(report: CheckReport, rt, ws: Workspace, package: str, executable: str,
                     node: str, topic: str, msg_type: str) -> None:
-    if node in rt.graph_nodes():  # it must be the packaged process that shows the node
-        report.add(f"no other {node} runs before the package starts", False,
-                   f"{node} is already in the graph",
-                   f"Remove the notebook's own node first (rt.remove('{node}')), or stop the "
-                   "process that runs it, then check again.")
+    alone = f"no other {node} runs before the package starts"  # the packaged process must show it
+    if node in rt.nodes():
+        report.add(alone, False, f"{node} is this notebook's own node, already in the graph",
+                   f"Remove it first (rt.remove('{node}')), then check again.")
+        return
+    if node in rt.graph_nodes() and not _left_when_its_lease_ended(rt, node):
+        report.add(alone, False, f"{node} is still in the graph after {LEFTOVER_WAIT_S:g} s: a running "
+                   "process has it", "Stop the program that runs it (a terminal's `ros2 run`, another "
+                   "notebook), then check again.")
         return
     try:
         provisioned = ws.provision(package)
@@ -176,6 +185,20 @@ def _run_and_listen(report: CheckReport, rt, ws: Workspace, package: str, execut
         _listen_and_stop(report, rt, child, topic, msg_type)
     finally:
         stop_process(LABEL)
+
+
+def _left_when_its_lease_ended(rt, node: str) -> bool:
+    """Wait for ``node``, listed by another process, to leave the graph; False if it stays
+    :data:`LEFTOVER_WAIT_S`. It leaves at its lease end if its process has ended without leaving."""
+    print(f"{node} is in the graph, but not as this notebook's node. A program that was killed (as the "
+          f"last check kills one that ignores Ctrl+C) stays listed until its lease ends ({LEASE_S:g} s): "
+          f"waiting up to {LEFTOVER_WAIT_S:g} s for it to leave...", flush=True)
+    try:
+        rt.wait_until(lambda: node not in rt.graph_nodes(), LEFTOVER_WAIT_S, f"{node} to leave the graph")
+    except WaitTimeout:
+        return False
+    print(f"{node} has left; checking the package.", flush=True)
+    return True
 
 
 def _start(report: CheckReport, ws: Workspace, package: str, executable: str, node: str, provisioned):
