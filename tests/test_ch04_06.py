@@ -325,10 +325,14 @@ def test_rate_tuner_widget_draws_outside_the_executor_and_stops_with_its_node(rt
     assert drawn_in and set(drawn_in) == {"rate-tuner-plot"}, drawn_in
     assert bytes(tuner._widgets[2].value).startswith(b"\x89PNG")
     rt.remove(tuner.node)
-    # it ends once no redraw was asked for REDRAW_IDLE_S (a redraw is asked every second while the node runs)
+    # destroying the node wakes the drawing thread, which ends and says so in the widget (an event:
+    # the default bound only ends a hang)
     rt.wait_until(lambda: "rate-tuner-plot" not in [t.name for t in threading.enumerate()],
-                  rate_tuner.REDRAW_IDLE_S + 5.0,
-                  "the drawing thread to end after its node was removed")
+                  what="the drawing thread to end after its node was removed")
+    slider, label, _image = tuner._widgets
+    assert slider.disabled and label.value == rate_tuner.NODE_GONE_NOTE
+    tuner._on_slider(5.0, label)  # a slider move after that is refused in the cell, not sent
+    assert label.value == rate_tuner.NODE_GONE_NOTE and tuner.requested == 10.0
 
 
 def test_launch_starts_configured_nodes_and_stops_them_together(rt, tmp_path):

@@ -28,9 +28,25 @@ from course_helpers.core.names import as_full_name
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_topic_name, resolve_interface
 
-REDRAW_IDLE_S = 5.0  # the drawing thread ends when no redraw was asked for this long (the node is gone)
 RECORD_AFTER_SLIDER_S = 2.5  # after a slider move, the record waits this long so the 1 s window is new
 RECORD_TITLE = "rate tuner"
+NODE_GONE_NOTE = "<i>the rate_tuner node was removed: run the cell again to tune</i>"
+
+
+class _TunerNode(Node):
+    """The tuner's own node. Destroying it (``rt.remove``, a re-run, a runtime stop) sets ``gone``
+    and wakes the drawing thread, which then ends: an event, however busy the machine is."""
+
+    def __init__(self, name: str, gone: threading.Event, wake: threading.Event):
+        super().__init__(name)
+        self.gone, self.wake = gone, wake
+
+    def destroy_node(self):
+        try:
+            return super().destroy_node()
+        finally:
+            self.gone.set()
+            self.wake.set()
 
 
 class RateTuner:
@@ -69,6 +85,7 @@ class RateTuner:
         self._widgets = None
         self._ticks = 0
         self._redraw = threading.Event()  # set by the timer (executor thread), served by the drawing thread
+        self.gone = threading.Event()  # set when the tuner's node is destroyed
         self._note = ("", 0.0)  # (HTML message, shown until this time)
         self._lock = threading.Lock()
         self.record = None  # the static record shown by show()
@@ -76,7 +93,7 @@ class RateTuner:
         self.last_refusal: tuple[float, str] | None = None  # (requested Hz, reason)
         self._syncing = False  # set while set_rate moves the slider (no second set_parameters call)
         self._record_due: float | None = None  # monotonic time at which a slider move gets recorded
-        self.node = self.rt.add(Node, "rate_tuner", console=False)
+        self.node = self.rt.add(_TunerNode, "rate_tuner", self.gone, self._redraw, console=False)
         self.client = AsyncParameterClient(self.node, self.target)
         self.node.create_subscription(resolve_interface(msg_type, "msg"), topic, self._on_message, 10)
         self.node.create_timer(0.5, self._tick)  # rolling measurement and live refresh [s]
@@ -272,6 +289,9 @@ class RateTuner:
         return text, body
 
     def _on_slider(self, hz: float, label) -> None:
+        if self.gone.is_set():
+            label.value = NODE_GONE_NOTE
+            return
         try:
             result = self.set_rate(hz)
             problem = "" if result.successful else f"rejected: {result.reason}"
@@ -283,15 +303,22 @@ class RateTuner:
         self._record_due = time.monotonic() + RECORD_AFTER_SLIDER_S
 
     def _draw_when_asked(self) -> None:
-        """The drawing thread: redraw whenever the timer asks; end when it stops asking (node removed).
+        """The drawing thread: redraw whenever the timer asks; end when the tuner's node is destroyed,
+        saying so in the widget.
 
         A slider move is recorded here too, once the 1 s measuring window holds only the new rate."""
-        while self._redraw.wait(REDRAW_IDLE_S) and self.rt.running:
+        while True:
+            self._redraw.wait()
             self._redraw.clear()
+            if self.gone.is_set():
+                break
             self._refresh_widgets()
             if self._record_due is not None and time.monotonic() >= self._record_due:
                 self._record_due = None
                 self.update_record()
+        slider, label, _image = self._widgets
+        slider.disabled = True
+        label.value = NODE_GONE_NOTE
 
     def _refresh_widgets(self) -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
