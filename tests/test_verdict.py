@@ -6,6 +6,7 @@ A busy machine is made with real CPU-bound processes outside the test's process 
 
 from __future__ import annotations
 
+import gc
 import subprocess
 import sys
 import time
@@ -82,6 +83,47 @@ def test_a_timing_verdict_passes_when_the_bound_holds_whatever_the_load():
                                       show=lambda s: f"{s:.2f} s")
     assert verdict.outcome == PASS and verdict.attempts == 1 and value == 0.01
     assert verdict.line() == "\u2714 the answer comes within 1 s: 0.01 s"
+
+
+@pytest.mark.timing  # it calls judge_timing, though the bound is never near
+def test_no_garbage_collection_runs_inside_a_timing_measurement_and_the_collector_comes_back():
+    collections = []  # (generation, while measuring) of every collection that ran
+    measuring = [False]
+
+    def note(phase, info):
+        if phase == "start":
+            collections.append((info["generation"], measuring[0]))
+
+    def allocating_cycles():  # enough new containers to start collections many times over
+        measuring[0] = True
+        try:
+            for _ in range(20_000):
+                cycle = []
+                cycle.append(cycle)
+        finally:
+            measuring[0] = False
+        return 0.01
+
+    gc.callbacks.append(note)
+    try:
+        judge_timing("it takes under 1 s", allocating_cycles, lambda s: s < 1.0)
+        assert gc.isenabled()
+        allocating_cycles_after = [[] for _ in range(5_000)]  # the collector runs again afterwards
+        with pytest.raises(RuntimeError):
+            judge_timing("it takes under 1 s", _raises, lambda s: s < 1.0)
+        assert gc.isenabled()
+        gc.disable()  # a user who turned the collector off keeps it off
+        judge_timing("it takes under 1 s", lambda: 0.01, lambda s: s < 1.0)
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+        gc.callbacks.remove(note)
+    assert not [gen for gen, inside in collections if inside], collections
+    assert collections and allocating_cycles_after  # the collector ran outside the measurement
+
+
+def _raises():
+    raise RuntimeError("the measurement broke")
 
 
 @pytest.mark.makes_load

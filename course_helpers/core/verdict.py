@@ -15,13 +15,21 @@ Every verdict a user meets (a test, a checker's criterion, a notebook's claim) i
   - it does not hold, and the machine was busy: measured again, at most :data:`ATTEMPTS` times in
     all; still not holding on a busy machine, it is **inconclusive**, with the load that made it so.
 
+Python's cyclic garbage collector is kept out of every timing measurement (:func:`collector_paused`):
+a full collection in a large process holds the interpreter for a tenth of a second or more (up to
+1.5 s in a pytest worker that had run the timing tests), stalling every callback, and no load meter
+sees it, because the process itself is running. Reference counting still frees what the
+measurement drops; cycles wait until it ends.
+
 Inconclusive is never a pass: :meth:`Verdict.raise_unless_passed` raises for it as for a failure,
 with one line that says why and what to do. On a quiet machine a verdict is never inconclusive.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+import gc
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import TypeVar
 
@@ -119,14 +127,28 @@ def judge_timing(statement: str, measure: Callable[[], T], holds: Callable[[T], 
     for watcher in list(TIMING_WATCHERS):
         watcher(statement)
     for attempt in range(1, attempts + 1):
-        meter = LoadMeter()
-        value = measure()
-        load = meter.finish(course_kernels=course_kernels and attempt == attempts)
+        with collector_paused():
+            meter = LoadMeter()
+            value = measure()
+            load = meter.finish(course_kernels=course_kernels and attempt == attempts)
         if holds(value):
             return Verdict(statement, PASS, show(value), load, attempt), value
         if not load.busy:
             return Verdict(statement, FAIL, show(value), load, attempt), value
     return Verdict(statement, INCONCLUSIVE, show(value), load, attempts), value
+
+
+@contextlib.contextmanager
+def collector_paused() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector for the block (see the module docstring); it runs
+    again afterwards, unless it was off before."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
 
 
 def reusing(first: T, measure: Callable[[], T]) -> Callable[[], T]:
