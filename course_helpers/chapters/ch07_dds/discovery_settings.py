@@ -19,18 +19,20 @@ from dataclasses import dataclass, field
 
 from course_helpers.chapters.ch07_dds.discovery import DiscoveryAnchor, DiscoveryTiming, discovery_probe
 from course_helpers.chapters.ch07_dds.listener import ReportingListener
+from course_helpers.core.channel import report
 from course_helpers.core.dds_config import (
     ANNOUNCEMENT_S,
     DEFAULT_ACKNACK_S,
     DEFAULT_ANNOUNCEMENT_S,
     DEFAULT_SHM_HEALTH_CHECK_MS,
     GRAPH_ACKNACK_S,
+    PEER_IDS,
     SHM_HEALTH_CHECK_MS,
     default_discovery_env,
 )
 from course_helpers.core.domains import reserve_domain, reserve_spare_domain
 from course_helpers.core.errors import CourseError
-from course_helpers.core.udp_sockets import discovery_port
+from course_helpers.core.udp_sockets import discovery_port, udp_sockets
 from course_helpers.core.waiting import poll_until
 
 SETTINGS = {
@@ -132,6 +134,13 @@ class AnnouncementTraffic:
     arrivals: dict[int, list[float]] = field(default_factory=dict)  # participant id -> time.monotonic()
     sizes: list[int] = field(default_factory=list)  # bytes of each datagram (UDP payload)
     senders: set[bytes] = field(default_factory=set)  # RTPS GUID prefixes of the senders
+    held_ids: list[int] = field(default_factory=list)  # ids whose port another socket held: not listened to
+    own_id: int | None = None  # the lone participant's id, read from its own sockets (None: not known)
+
+    @property
+    def held_by_others(self) -> list[int]:
+        """The ids of :attr:`held_ids` other than the lone participant's: ports another program held."""
+        return [pid for pid in self.held_ids if pid != self.own_id]
 
     @property
     def ports_reached(self) -> list[int]:
@@ -151,7 +160,7 @@ class AnnouncementTraffic:
 
 
 def listen_to_announcements(domain: int, seconds: float = 1.5,
-                            participant_ids=range(1, 64)) -> AnnouncementTraffic:
+                            participant_ids=range(2 * PEER_IDS)) -> AnnouncementTraffic:
     """Count the discovery datagrams sent in ``domain`` to the ports of ``participant_ids`` for ``seconds``.
 
     Only ports nobody holds are bound (plain UDP sockets on 127.0.0.1); run it while one participant,
@@ -168,7 +177,8 @@ def listen_to_announcements(domain: int, seconds: float = 1.5,
             try:
                 sock.bind(("127.0.0.1", discovery_port(domain, pid)))
             except OSError:
-                sock.close()  # a participant of that domain holds it
+                sock.close()  # a participant of that domain holds it, or some other program
+                traffic.held_ids.append(pid)
                 continue
             sock.setblocking(False)
             sockets[sock] = pid
@@ -195,21 +205,36 @@ def listen_to_announcements(domain: int, seconds: float = 1.5,
     return traffic
 
 
+class LoneListener(ReportingListener):
+    """A quiet listener that reports the UDP ports its process holds (``report('ports', ports=[...])``).
+
+    Fast DDS gives a participant the lowest id whose ports are free, so its id is 0 only when nothing
+    else holds participant 0's ports in that domain; its own ports tell which id it took.
+    """
+
+    def __init__(self, name: str = "lone_listener"):
+        super().__init__(name)  # the first node creates the participant, which binds its ports
+        report("ports", ports=sorted({port for _, port in udp_sockets()}))
+
+
 def measure_announcements(rt, seconds: float = 1.5) -> AnnouncementTraffic:
     """Start one lone, quiet node (a listener) with the course's settings in a domain of its own,
     and listen to its announcements.
 
-    Returns the :class:`AnnouncementTraffic` seen in ``seconds`` (after its first announcements).
+    Returns the :class:`AnnouncementTraffic` seen in ``seconds`` (after its first announcements), with
+    the participant's own id.
     """
     domain = _comparison_domains()[0]
-    child = rt.spawn("lone_participant", ReportingListener, params={"name": "lone_listener"},
-                     env=_env("course", domain, rt.log_dir))
+    child = rt.spawn("lone_participant", LoneListener, env=_env("course", domain, rt.log_dir))
     try:
+        ports = set(child.wait_for_report("ports", 30, "the lone participant's ports")["ports"])
         child.wait_for_report("ready", 30)
         time.sleep(ANCHOR_SETTLE_S)  # past its first, fast announcements
-        return listen_to_announcements(domain, seconds)
+        traffic = listen_to_announcements(domain, seconds)
     finally:
         rt.stop_child("lone_participant")
+    traffic.own_id = next((pid for pid in range(2 * PEER_IDS) if discovery_port(domain, pid) in ports), None)
+    return traffic
 
 
 def plot_discovery(comparison: DiscoveryComparison):
