@@ -208,9 +208,10 @@ def listen_to_announcements(domain: int, seconds: float = 1.5,
 class LoneListener(ReportingListener):
     """A quiet listener that reports the UDP ports its process holds (``report('ports', ports=[...])``).
 
-    Its id is 0 only while nothing else holds participant 0's ports in that domain: Fast DDS moves a
-    locator it cannot open by one id's worth of ports and tries again (``applyLocatorAdaptRule`` in
-    ``RTPSParticipantImpl.cpp``), so its own ports tell which id it took.
+    Its id need not be 0. Fast DDS gives a participant the smallest id its own process is not using
+    (``RTPSDomainImpl::getNewId``), and moves a locator it cannot open, such as a port another program
+    holds, by one id's worth of ports and tries again (``applyLocatorAdaptRule`` in
+    ``RTPSParticipantImpl.cpp``). So its own ports tell which id it took.
     """
 
     def __init__(self, name: str = "lone_listener"):
