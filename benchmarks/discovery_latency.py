@@ -91,11 +91,12 @@ CHILDREN_GOAL_S = round(ANNOUNCEMENT_S + EDP_FIRST_REQUEST_S + EDP_ANSWER_S + 0.
 
 # ---------------------------------------------------------------------- plain rclpy processes
 PLAIN_ANCHOR = """
-import json, sys, time
+import json, signal, sys, time
 import rclpy
 from rclpy.node import Node
 from std_msgs.msg import String
 rclpy.init()
+signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))  # the benchmark's stop: leave quietly
 node = Node('bench_anchor')
 publisher = node.create_publisher(String, 'bench_beacon', 10)
 seen = set()
