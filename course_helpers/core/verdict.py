@@ -55,6 +55,12 @@ class VerdictError(AssertionError):
         return [f"\x1b[0;31m{self}\x1b[0m"]
 
 
+class TimingVerdictError(VerdictError):
+    """A timing verdict that did not pass: it failed on a quiet machine or stayed inconclusive on a
+    busy one. Its own name lets a reader of a notebook's errors tell it from a claim by construction
+    (the release check does: tools/assignments.py)."""
+
+
 @dataclass(frozen=True)
 class Verdict:
     """One judged statement: what was claimed, the outcome, what was measured, and the load met."""
@@ -95,9 +101,10 @@ class Verdict:
         return text
 
     def raise_unless_passed(self) -> Verdict:
-        """Return the verdict if it passed; raise :class:`VerdictError` (an AssertionError) otherwise."""
+        """Return the verdict if it passed; raise :class:`VerdictError` (an AssertionError) otherwise,
+        :class:`TimingVerdictError` for a timing verdict (one judged under a load meter)."""
         if not self.passed:
-            raise VerdictError(self)
+            raise (VerdictError if self.load is None else TimingVerdictError)(self)
         return self
 
 
