@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import subprocess
 import sys
+import tempfile
 import textwrap
 
 import pytest
@@ -31,17 +34,53 @@ def _stop_runtime_at_end():
     shutdown_runtime()
 
 
+EXEMPT_FROM_THE_STAGE_CHECK = ("timing", "makes_load", "grades_notebooks", "run_all", "image")
+_RECORD_START = pytest.StashKey[int]()
+
+
+def pytest_configure(config):
+    """Each test process (every xdist worker) gets the file in which the processes it starts record
+    the timing statements they judge (``course_helpers.core.verdict.TIMING_RECORD_VARIABLE``): set
+    before any fixture starts a server, so that the server's kernels inherit it too."""
+    handle, record = tempfile.mkstemp(prefix="course-timing-judged-", suffix=".jsonl")
+    os.close(handle)
+    os.environ[verdict.TIMING_RECORD_VARIABLE] = record
+
+
+def pytest_unconfigure(config):
+    record = os.environ.pop(verdict.TIMING_RECORD_VARIABLE, None)
+    if record:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(record)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    """Where the record stood before the test's fixtures (a module's too) were set up."""
+    item.stash[_RECORD_START] = os.path.getsize(os.environ[verdict.TIMING_RECORD_VARIABLE])
+
+
 @pytest.fixture(autouse=True)
 def _time_is_judged_in_the_timing_stage(request):
     """A test that judges a measurement with the timing verdict must be marked 'timing'.
 
     The logic stage runs five workers on two cores; a measurement there may stay inconclusive for
     lack of CPU, which fails the test for a reason that is not its own. So whatever judges time in a
-    test that is not marked fails at once, on any machine, naming the statement it judged. The
-    verdict's own tests that make the machine busy on purpose are marked 'makes_load' instead: in
-    the timing stage their busy loops would spoil the measurements of the worker beside them.
+    test that is not marked fails at once, on any machine, naming the statement it judged: in the
+    test's own process, in a process it or its fixtures started (the record of
+    :func:`pytest_configure`), or in a kernel it ran code in over a server's websocket
+    (:class:`tests.servers.KernelChannels`). A module fixture's judging counts for the test that
+    set it up.
+
+    Exempt are the verdict's own tests that make the machine busy on purpose ('makes_load': in the
+    timing stage their busy loops would spoil the measurements of the worker beside them); the
+    grading tests ('grades_notebooks'): nbgrader runs a chapter's lesson cells too, whose claims
+    judge time, but it scores only the exercises' cells (tools/grading/results.py) and the release
+    check prints a lesson's timing claim as a note (tools/assignments.lesson_cell_problem), so no
+    verdict of theirs reads a timing claim; and the tests of the stages of their own ('run_all' for make
+    test-browser, 'image' for make test-image), where every notebook runs as a student runs it.
     """
-    if any(request.node.get_closest_marker(mark) for mark in ("timing", "makes_load")):
+    if any(request.node.get_closest_marker(mark) for mark in EXEMPT_FROM_THE_STAGE_CHECK):
         yield
         return
     judged: list[str] = []
@@ -50,6 +89,9 @@ def _time_is_judged_in_the_timing_stage(request):
         yield
     finally:
         verdict.TIMING_WATCHERS.remove(judged.append)
+    with open(os.environ[verdict.TIMING_RECORD_VARIABLE], encoding="utf-8") as record:
+        record.seek(request.node.stash[_RECORD_START])
+        judged += [json.loads(line) for line in record if line.strip()]
     if judged:
         pytest.fail(f"this test judges time ({judged[0]!r}) but is not marked 'timing': mark it "
                     "(@pytest.mark.timing) so that it runs in make test's timing stage", pytrace=False)

@@ -7,12 +7,14 @@ for and stopped in one way (the process plumbing is ``tools/servers.py``, which 
   fails the test if a kernel was left;
 * :func:`jupyterhub`: a JupyterHub command, waited for until its API answers; stopped afterwards;
 * :class:`KernelChannels`: code run in a kernel of a Jupyter server over its websocket, as JupyterLab
-  runs a cell;
+  runs a cell; a timing statement the kernel judges is passed on to this process's timing watchers, so
+  that conftest's stage check sees time judged in a kernel as it sees time judged in the test;
 * :class:`ContainerServer`: a detached container of the course's image serving HTTP.
 """
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import json
 import os
@@ -29,6 +31,7 @@ from pathlib import Path
 
 import pytest
 
+from course_helpers.core import verdict
 from course_helpers.core.waiting import poll_until
 from tools.servers import ServerProcess, answers, api, free_port
 
@@ -135,23 +138,56 @@ def jupyterhub(argv: list[str], base: str, log_path: str | Path, cwd: str | Path
 
 class KernelChannels:
     """Runs code in a kernel of a Jupyter server over the server's kernel websocket (the way JupyterLab
-    does), and returns what it printed."""
+    does), and returns what it printed.
+
+    Before the first run it asks the kernel, silently, to record each timing statement it judges
+    (``course_helpers.core.verdict.TIMING_WATCHERS``); every run reads that record back as a user
+    expression and tells this process's timing watchers of the statements not yet passed on. A kernel
+    without the course's helpers records nothing.
+    """
+
+    RECORD = "_course_timing_judged"  # the kernel's list of the timing statements it judged
+    WATCH = (f"{RECORD} = []\n"
+             "try:\n"
+             "    from course_helpers.core import verdict as _course_verdict\n"
+             "except ImportError:\n"
+             "    pass\n"
+             "else:\n"
+             f"    _course_verdict.TIMING_WATCHERS.append({RECORD}.append)\n"
+             "    del _course_verdict\n")
 
     def __init__(self, url: str, token: str, user: str = "test", timeout: float = 120):
         import websocket  # websocket-client
 
         self.ws = websocket.create_connection(url, header=[f"Authorization: token {token}"], timeout=timeout)
         self.session, self.user = uuid.uuid4().hex, user
+        self.watching, self.passed_on = False, 0
 
     def run(self, code: str) -> str:
         """Execute ``code``; return its stdout and results; fail the test with the traceback on error."""
+        if not self.watching:
+            self._execute(self.WATCH, silent=True, read_record=False)
+            self.watching = True
+        printed, reply = self._execute(code)
+        failed = reply["status"] != "ok"
+        # After an error the kernel reads no expressions: the record is asked for again, silently.
+        self._pass_on_timing(self._execute("", silent=True)[1] if failed else reply)
+        if failed:
+            pytest.fail(f"{self.user}'s kernel: {reply.get('ename')}: {reply.get('evalue')}\n"
+                        + "\n".join(reply.get("traceback", []))[-3000:] + f"\n\n{code[:300]}")
+        return "".join(printed)
+
+    def _execute(self, code: str, silent: bool = False, read_record: bool = True) -> tuple[list[str], dict]:
+        """Send one execute request; (what it printed, its reply) once the kernel is idle again. With
+        ``read_record`` the reply carries the kernel's record of judged timing statements."""
         msg_id = uuid.uuid4().hex
+        expressions = {"judged": self.RECORD} if read_record else {}
         self.ws.send(json.dumps({
             "header": {"msg_id": msg_id, "session": self.session, "username": self.user,
                        "msg_type": "execute_request", "version": "5.3"},
             "parent_header": {}, "metadata": {}, "buffers": [], "channel": "shell",
-            "content": {"code": code, "silent": False, "store_history": True, "user_expressions": {},
-                        "allow_stdin": False, "stop_on_error": True}}))
+            "content": {"code": code, "silent": silent, "store_history": not silent,
+                        "user_expressions": expressions, "allow_stdin": False, "stop_on_error": True}}))
         printed, reply, idle = [], None, False
         while reply is None or not idle:
             frame = self.ws.recv()
@@ -169,10 +205,21 @@ class KernelChannels:
                 idle = content["execution_state"] == "idle"
             elif kind == "execute_reply":
                 reply = content
-        if reply["status"] != "ok":
-            pytest.fail(f"{self.user}'s kernel: {reply.get('ename')}: {reply.get('evalue')}\n"
-                        + "\n".join(reply.get("traceback", []))[-3000:] + f"\n\n{code[:300]}")
-        return "".join(printed)
+        if silent and reply["status"] != "ok":
+            pytest.fail(f"{self.user}'s kernel refused the test's own set-up: {reply.get('evalue')}")
+        return printed, reply
+
+    def _pass_on_timing(self, reply: dict) -> None:
+        """Tell this process's timing watchers of each statement the kernel judged since the last run."""
+        judged = reply["user_expressions"]["judged"]
+        if judged["status"] != "ok":
+            pytest.fail(f"{self.user}'s kernel lost the test's record of judged timing statements "
+                        f"({self.RECORD}): {judged.get('ename')}: {judged.get('evalue')}")
+        statements = ast.literal_eval(judged["data"]["text/plain"])
+        for statement in statements[self.passed_on:]:
+            for watcher in list(verdict.TIMING_WATCHERS):
+                watcher(statement)
+        self.passed_on = len(statements)
 
     def close(self) -> None:
         self.ws.close()

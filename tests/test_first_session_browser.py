@@ -65,7 +65,8 @@ from .lab_page import (
 
 # About 2 minutes on a busy 2-core machine: JupyterLab twice, notebook 00, the interrupt, two lab runs
 # under load.
-pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
+# timing: notebook 00's claims judge rates, and step 2 asserts no cell shows an error
+pytestmark = [pytest.mark.browser, pytest.mark.timing, pytest.mark.timeout(600)]
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VENV = os.path.join(REPO, ".venv")

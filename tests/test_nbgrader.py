@@ -35,7 +35,7 @@ from .nbgrader_support import (
     verdict,
 )
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
+pytestmark = [pytest.mark.slow, pytest.mark.grades_notebooks, pytest.mark.timeout(600)]
 
 
 def _students(course_dir) -> dict:

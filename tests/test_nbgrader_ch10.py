@@ -29,7 +29,7 @@ from .nbgrader_support import (
     student_build,
 )
 
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
+pytestmark = [pytest.mark.slow, pytest.mark.grades_notebooks, pytest.mark.timeout(900)]
 
 CHAPTER = "10_capstone"
 EXERCISE = "ex1_FleetSafetyMonitor"

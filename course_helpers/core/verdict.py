@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import json
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import TypeVar
@@ -41,6 +43,9 @@ MARKS = {PASS: "\u2714", FAIL: "\u2718", INCONCLUSIVE: "inconclusive (busy machi
 
 T = TypeVar("T")
 TIMING_WATCHERS: list[Callable[[str], None]] = []  # told each timing statement judged (tests' stage check)
+# The same for the processes a test starts (kernels, graders, children): where this variable names a
+# file, each timing statement judged is appended to it as a line of JSON (tests/conftest.py sets it).
+TIMING_RECORD_VARIABLE = "COURSE_TIMING_RECORD"
 
 
 class VerdictError(AssertionError):
@@ -113,6 +118,21 @@ def judge(statement: str, holds: object, measured: str = "") -> Verdict:
     return Verdict(statement, PASS if holds else FAIL, measured)
 
 
+def _tell_timing_watchers(statement: str) -> None:
+    """Tell :data:`TIMING_WATCHERS`, and the record :data:`TIMING_RECORD_VARIABLE` names, that
+    ``statement`` is judged on the wall clock."""
+    for watcher in list(TIMING_WATCHERS):
+        watcher(statement)
+    record = os.environ.get(TIMING_RECORD_VARIABLE)
+    if not record:
+        return
+    try:
+        with open(record, "a", encoding="utf-8") as out:
+            out.write(json.dumps(statement) + "\n")
+    except PermissionError:
+        pass  # a kernel run as another user (a hub's student) cannot; tests.servers.KernelChannels tells
+
+
 def judge_timing(statement: str, measure: Callable[[], T], holds: Callable[[T], object],
                  show: Callable[[T], str] = str, attempts: int = ATTEMPTS,
                  course_kernels: bool = True) -> tuple[Verdict, T]:
@@ -131,8 +151,7 @@ def judge_timing(statement: str, measure: Callable[[], T], holds: Callable[[T], 
     """
     if attempts < 1:
         raise ValueError(f"attempts must be at least 1, got {attempts!r}")
-    for watcher in list(TIMING_WATCHERS):
-        watcher(statement)
+    _tell_timing_watchers(statement)
     for attempt in range(1, attempts + 1):
         with collector_paused():
             meter = LoadMeter()
