@@ -25,6 +25,7 @@ from course_helpers.chapters.ch08b_lab import (
     run_experiment,
 )
 from course_helpers.core.waiting import poll_until
+from tests.timing import assert_timing
 
 # measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
 pytestmark = pytest.mark.timing
@@ -269,12 +270,20 @@ def test_a_run_that_ends_with_samples_in_flight_says_so_first(rt, monkeypatch):
     config = ExperimentConfig(reliability="reliable", depth=100, rate_hz=100, processing_ms=20,
                               duration_s=1.0, label="slow reader")
     lab = qos_lab()
-    try:
+
+    def run_once():
         lab.start([config])
         assert lab.wait(60)
-        (result,) = lab.results
-        print(result.summary())
-        assert result.in_flight > 0 and not result.finished and not result.stopped
+        print(lab.results[-1].summary())
+        return lab.results[-1]
+
+    try:
+        # That a queue is left is a race the publisher wins when it gets its CPU: 1 s of sending
+        # against the reader's 2 s of work. A busy machine can slow the publisher to the reader's pace
+        # (a fresh-clone CI run: "delivered 100 of 100 sent"), so the timing verdict judges it.
+        result = assert_timing("the publisher sends faster than a 20 ms-per-sample reader takes",
+                               run_once, lambda r: r.in_flight > 0, show=lambda r: r.summary())
+        assert not result.finished and not result.stopped
         assert result.delivered + result.in_flight == result.published and result.lost_nothing
         assert result.summary().startswith("slow reader: NOT FINISHED, ")  # the headline
         assert "queued for a subscriber that needs 20 ms per sample" in result.summary()
