@@ -217,8 +217,7 @@ class KernelChannels:
                         f"({self.RECORD}): {judged.get('ename')}: {judged.get('evalue')}")
         statements = ast.literal_eval(judged["data"]["text/plain"])
         for statement in statements[self.passed_on:]:
-            for watcher in list(verdict.TIMING_WATCHERS):
-                watcher(statement)
+            verdict.tell_timing_watchers(statement)
         self.passed_on = len(statements)
 
     def close(self) -> None:

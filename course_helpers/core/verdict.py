@@ -118,7 +118,7 @@ def judge(statement: str, holds: object, measured: str = "") -> Verdict:
     return Verdict(statement, PASS if holds else FAIL, measured)
 
 
-def _tell_timing_watchers(statement: str) -> None:
+def tell_timing_watchers(statement: str) -> None:
     """Tell :data:`TIMING_WATCHERS`, and the record :data:`TIMING_RECORD_VARIABLE` names, that
     ``statement`` is judged on the wall clock."""
     for watcher in list(TIMING_WATCHERS):
@@ -151,7 +151,7 @@ def judge_timing(statement: str, measure: Callable[[], T], holds: Callable[[T], 
     """
     if attempts < 1:
         raise ValueError(f"attempts must be at least 1, got {attempts!r}")
-    _tell_timing_watchers(statement)
+    tell_timing_watchers(statement)
     for attempt in range(1, attempts + 1):
         with collector_paused():
             meter = LoadMeter()
