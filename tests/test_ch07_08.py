@@ -67,8 +67,9 @@ def test_domains_isolate_and_a_probe_sees_the_other_domain(rt):
 
 
 def test_discovery_is_measured_and_range_off_finds_nothing(rt):
-    timings = dds.measure_discovery(rt, repeats=1)
-    assert timings[0].found and 0 < timings[0].reader_matched_s < 8
+    assert_timing("a new process finds the kernel's anchor within 5 s",
+                  lambda: dds.measure_discovery(rt, repeats=1)[0],
+                  lambda timing: timing.found and timing.reader_matched_s > 0)
     off = dds.measure_discovery(rt, repeats=1, env={"ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}, timeout_s=1.5)
     assert not off[0].found and off[0].reader_matched_s is None
     assert "/discovery_anchor" not in rt.nodes()
