@@ -11,7 +11,9 @@ WORK   ?= $(HOME)/ros2-course-work
 # machine busy; each worker has its own ROS domain. Tests marked 'timing' measure time (rates,
 # latencies, DDS's deadline and lease events) and judge it with the one timing verdict, which measures
 # again on a busy machine: they run in a stage of their own with TIMING_JOBS workers, so that they do
-# not starve each other (README: how these numbers were measured). `make test JOBS=1` runs one at a time.
+# not starve each other (README: how these numbers were measured); a timing test marked 'runs_alone' (it
+# loads the machine by design) runs while no other test runs (tests/timing_turns.py).
+# `make test JOBS=1` runs one at a time.
 # Files are dealt out whole (--dist loadfile: a notebook's cells share one kernel, a test file's
 # tests their module fixtures), longest first by the seconds in tests/durations.json
 # (conftest.py; --no-loadscope-reorder keeps that order instead of xdist's count of tests).

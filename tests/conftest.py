@@ -14,6 +14,7 @@ import pytest
 
 from course_helpers import get_runtime, shutdown_runtime
 from course_helpers.core import verdict
+from tests import timing_turns
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -45,13 +46,34 @@ def pytest_configure(config):
     handle, record = tempfile.mkstemp(prefix="course-timing-judged-", suffix=".jsonl")
     os.close(handle)
     os.environ[verdict.TIMING_RECORD_VARIABLE] = record
+    timing_turns.open_turns(config)
 
 
 def pytest_unconfigure(config):
+    timing_turns.close_turns(config)
     record = os.environ.pop(verdict.TIMING_RECORD_VARIABLE, None)
     if record:
         with contextlib.suppress(FileNotFoundError):
             os.remove(record)
+
+
+def pytest_collection_modifyitems(items):
+    alone, shared = timing_turns.ALONE, timing_turns.SHARED
+    loose = [item.nodeid for item in items
+             if item.get_closest_marker(alone) and not item.get_closest_marker(shared)]
+    if loose:
+        raise pytest.UsageError(f"marked '{alone}' but not '{shared}' (it would run in the logic stage, "
+                                f"beside everything): {', '.join(loose)}")
+
+
+@pytest.hookimpl(hookwrapper=True, tryfirst=True)  # outside pytest-timeout's: waiting is not the test's time
+def pytest_runtest_protocol(item, nextitem):
+    """A timing test runs in its turn (tests/timing_turns.py): one marked 'runs_alone' while no other does."""
+    if not item.get_closest_marker(timing_turns.SHARED):
+        yield
+        return
+    with timing_turns.turn(alone=item.get_closest_marker(timing_turns.ALONE) is not None):
+        yield
 
 
 @pytest.hookimpl(tryfirst=True)

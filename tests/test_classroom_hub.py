@@ -272,6 +272,7 @@ print(json.dumps(sorted(rt.graph_nodes())))
 
 
 @pytest.mark.timing  # notebook 00's cells judge rates in the kernels (passed on by KernelChannels)
+@pytest.mark.runs_alone  # a hub, its proxy and three kernels with nodes would starve a measurement beside it
 def test_three_students_on_one_hub(hub, tmp_path):
     # The test authenticator: the shared password logs a student in, a wrong one does not.
     login = requests.Session()

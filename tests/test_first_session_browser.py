@@ -66,7 +66,8 @@ from .lab_page import (
 # About 2 minutes on a busy 2-core machine: JupyterLab twice, notebook 00, the interrupt, two lab runs
 # under load.
 # timing: notebook 00's claims judge rates, and step 2 asserts no cell shows an error
-pytestmark = [pytest.mark.browser, pytest.mark.timing, pytest.mark.timeout(600)]
+# runs_alone: JupyterLab and Chromium would starve a measurement beside them
+pytestmark = [pytest.mark.browser, pytest.mark.timing, pytest.mark.runs_alone, pytest.mark.timeout(600)]
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VENV = os.path.join(REPO, ".venv")

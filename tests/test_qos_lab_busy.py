@@ -22,7 +22,8 @@ from course_helpers.chapters.ch08b_lab import preset, qos_lab
 from tests.kernel_session import KernelSession
 
 # measures time (rates, latencies, DDS events): make test's timing stage, few workers beside it
-pytestmark = pytest.mark.timing
+# runs_alone: the busy machine it makes on purpose would starve the other worker's measurements
+pytestmark = [pytest.mark.timing, pytest.mark.runs_alone]
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PRESET = "best-effort vs reliable under load"
