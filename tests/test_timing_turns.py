@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from course_helpers.core.waiting import poll_until
-from tests.timing_turns import TURNS_VARIABLE
+from tests.timing_turns import STAGE, TURNS_VARIABLE, TURNSTILE, open_lock
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # a test process in its turn: says when it holds it, then keeps it until its stdin ends
@@ -35,15 +35,15 @@ def turns(tmp_path, monkeypatch):
         started.append(process)
         return process
 
-    yield tmp_path, hold
+    yield hold
     for process in started:
         process.kill()
         process.wait()
 
 
-def _free(folder, name: str, how: int) -> bool:
+def _free(name: str, how: int) -> bool:
     """Whether this process could take the lock ``name`` now (without waiting); it lets it go at once."""
-    fd = os.open(os.path.join(folder, name), os.O_RDWR | os.O_CREAT, 0o600)
+    fd = open_lock(name)
     try:
         fcntl.flock(fd, how | fcntl.LOCK_NB)
         return True
@@ -58,35 +58,35 @@ def _says(process: subprocess.Popen, word: str) -> None:
 
 
 def test_a_test_that_runs_alone_waits_for_the_others_and_holds_off_the_next(turns):
-    folder, hold = turns
+    hold = turns
     first = hold("shared")
     _says(first, "holding")
     second = hold("shared")
     _says(second, "holding")  # two timing tests share the stage
-    assert not _free(folder, "stage", fcntl.LOCK_EX)
+    assert not _free(STAGE, fcntl.LOCK_EX)
     alone = hold("alone")
     # It waits for the stage and keeps the turnstile meanwhile, so no further test overtakes it.
-    waiting = poll_until(lambda: not _free(folder, "turnstile", fcntl.LOCK_EX), 10)
+    waiting = poll_until(lambda: not _free(TURNSTILE, fcntl.LOCK_EX), 10)
     assert waiting, "it is not waiting at the turnstile (it took the stage beside the others?)"
     first.stdin.close()
     _says(first, "released")
-    assert not _free(folder, "turnstile", fcntl.LOCK_EX)  # the other test still runs: it still waits
+    assert not _free(TURNSTILE, fcntl.LOCK_EX)  # the other test still runs: it still waits
     second.stdin.close()
     _says(second, "released")
     _says(alone, "holding")
-    assert not _free(folder, "stage", fcntl.LOCK_SH)  # nothing else runs beside it
+    assert not _free(STAGE, fcntl.LOCK_SH)  # nothing else runs beside it
     alone.stdin.close()
     _says(alone, "released")
-    assert _free(folder, "stage", fcntl.LOCK_EX) and _free(folder, "turnstile", fcntl.LOCK_EX)
+    assert _free(STAGE, fcntl.LOCK_EX) and _free(TURNSTILE, fcntl.LOCK_EX)
 
 
 def test_a_killed_test_process_gives_up_its_turn(turns):
-    folder, hold = turns
+    hold = turns
     alone = hold("alone")
     _says(alone, "holding")
     alone.kill()
     alone.wait()
-    assert _free(folder, "stage", fcntl.LOCK_EX)
+    assert _free(STAGE, fcntl.LOCK_EX)
 
 
 def test_runs_alone_without_timing_is_refused_at_collection(tmp_path):

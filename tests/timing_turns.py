@@ -27,6 +27,7 @@ from collections.abc import Iterator
 
 TURNS_VARIABLE = "COURSE_TIMING_TURNS"
 SHARED, ALONE = "timing", "runs_alone"  # the marks
+STAGE, TURNSTILE = "stage", "turnstile"  # the lock files
 
 
 def open_turns(config) -> None:
@@ -40,9 +41,14 @@ def close_turns(config) -> None:
         shutil.rmtree(os.environ.pop(TURNS_VARIABLE), ignore_errors=True)
 
 
+def open_lock(name: str) -> int:
+    """A descriptor of the lock file ``name`` (STAGE or TURNSTILE) of this run's turns."""
+    return os.open(os.path.join(os.environ[TURNS_VARIABLE], name), os.O_RDWR | os.O_CREAT, 0o600)
+
+
 @contextlib.contextmanager
 def _locked(name: str, how: int) -> Iterator[None]:
-    fd = os.open(os.path.join(os.environ[TURNS_VARIABLE], name), os.O_RDWR | os.O_CREAT, 0o600)
+    fd = open_lock(name)
     try:
         fcntl.flock(fd, how)
         yield
@@ -53,8 +59,7 @@ def _locked(name: str, how: int) -> Iterator[None]:
 @contextlib.contextmanager
 def turn(alone: bool) -> Iterator[None]:
     """Hold the stage's lock for one test: exclusively if it runs alone, shared otherwise."""
-    stack = contextlib.ExitStack()
-    with stack:
-        with _locked("turnstile", fcntl.LOCK_EX):
-            stack.enter_context(_locked("stage", fcntl.LOCK_EX if alone else fcntl.LOCK_SH))
+    with contextlib.ExitStack() as stage:
+        with _locked(TURNSTILE, fcntl.LOCK_EX):
+            stage.enter_context(_locked(STAGE, fcntl.LOCK_EX if alone else fcntl.LOCK_SH))
         yield
