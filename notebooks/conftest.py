@@ -17,6 +17,13 @@ namespaces; ``cyclonedds``: Eclipse Cyclone DDS's Python binding; ``tshark``: Wi
 ``tshark`` and ``dumpcap``). A cell may name several parts, one line each. Where a part is missing,
 those cells (and only those) are skipped, with the one-line reason the course gives, which names the
 install (``pytest -rs`` lists it). In a notebook they print that line.
+
+A cell whose work is a build names its builder in its metadata, ``"course_builds": "<builder>"``
+(``rosidl``, ``colcon`` or ``rcl_program``). The builder stops itself, with an error that says which
+step took too long, after its own limit; so such a cell gets that limit on top of the usual cell
+timeout, for nbval and for pytest-timeout alike. A loaded machine makes a build longer, never wrong,
+and the cell timeout is not a second, tighter judge of its speed: a fresh-clone CI run had chapter
+09's rosidl build (12 s idle) stopped by the 120 s cell timeout.
 """
 
 from __future__ import annotations
@@ -77,6 +84,49 @@ def needs_of(source: str) -> list[str]:
     return NEEDS_MARK.findall(source)
 
 
+BUILD_KEY = "course_builds"
+
+
+def build_limits_s() -> dict[str, float]:
+    """How long each builder runs at most before it stops itself: ``course_builds`` value -> seconds."""
+    from course_helpers.chapters.ch02_executors.rcl_programs import COMPILE_TIMEOUT_S
+    from course_helpers.chapters.ch09_packages.colcon import COLCON_TIMEOUT_S
+    from course_helpers.core.build_interfaces import BUILD_LIMIT_S
+
+    return {"rosidl": BUILD_LIMIT_S, "colcon": COLCON_TIMEOUT_S, "rcl_program": COMPILE_TIMEOUT_S}
+
+
+def _bound_builds(items, config) -> None:
+    """Give each cell that builds its builder's limit on top of the usual cell timeout."""
+    from nbval.plugin import IPyNbCell
+
+    limits, usual = None, float(config.option.nbval_cell_timeout)
+    for item in items:
+        builder = item.cell.metadata.get(BUILD_KEY) if isinstance(item, IPyNbCell) else None
+        if builder is None:
+            continue
+        limits = limits or build_limits_s()
+        if builder not in limits:
+            raise pytest.UsageError(f"{item.nodeid}: {BUILD_KEY} {builder!r} is not a known builder; "
+                                    f"known: {sorted(limits)}")
+        item.course_cell_timeout = usual + limits[builder]
+        item.add_marker(pytest.mark.timeout(item.course_cell_timeout))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    """nbval reads one cell timeout for all cells as each runs: a build cell's is set around its run."""
+    bound = getattr(item, "course_cell_timeout", None)
+    option = item.config.option
+    usual = option.nbval_cell_timeout
+    if bound is not None:
+        option.nbval_cell_timeout = bound
+    try:
+        yield
+    finally:
+        option.nbval_cell_timeout = usual
+
+
 def skip_reason(source: str, reasons: dict) -> str | None:
     """Why a cell must be skipped here (its first missing part), or None. ``reasons`` caches the probes."""
     for part in needs_of(source):
@@ -114,6 +164,7 @@ assert not _dupes and _threads == 1, (
 def pytest_collection_modifyitems(session, config, items):
     if os.environ.get("COURSE_NBVAL_RERUN", "1") == "0":
         _skip_missing_parts(items)
+        _bound_builds(items, config)
         return
     from nbval.plugin import IPyNbCell
 
@@ -139,6 +190,7 @@ def pytest_collection_modifyitems(session, config, items):
         if isinstance(item, IPyNbCell):
             item.add_marker(pytest.mark.xdist_group(f"notebook-{item.parent.name}"))
     _skip_missing_parts(ordered)
+    _bound_builds(ordered, config)
     items[:] = ordered
 
 

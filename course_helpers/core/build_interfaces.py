@@ -68,6 +68,8 @@ STAMP_NAME = ".interface_build_stamp.json"
 LOG_NAME = "build.log"
 LOG_TAIL_LINES = 40
 STEP_TIMEOUT_S = 600.0  # s; a CMake step that takes longer is stopped (a full build takes about 25 s)
+CMAKE_STEPS = ("configure", "build", "install")  # cmake_commands()' steps, in order
+BUILD_LIMIT_S = len(CMAKE_STEPS) * STEP_TIMEOUT_S  # s; the most a build runs before a step's limit stops it
 # Directories of a source tree that are not part of the package's definition.
 IGNORED_DIRS = {"build", "install", "log", "__pycache__"}
 
@@ -395,11 +397,12 @@ def cmake_commands(source: Path, prefix: Path, build: Path) -> list[tuple[str, l
         "-DBUILD_TESTING=OFF",
     ]  # fmt: skip
     jobs = str(os.cpu_count() or 2)
-    return [
-        ("configure", configure),
-        ("build", ["cmake", "--build", str(build), "--parallel", jobs]),
-        ("install", ["cmake", "--install", str(build)]),
-    ]
+    commands = {
+        "configure": configure,
+        "build": ["cmake", "--build", str(build), "--parallel", jobs],
+        "install": ["cmake", "--install", str(build)],
+    }
+    return [(step, commands[step]) for step in CMAKE_STEPS]
 
 
 def _log_tail(log_path: Path, lines: int = LOG_TAIL_LINES) -> str:
