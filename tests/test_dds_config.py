@@ -18,6 +18,7 @@ from course_helpers.core.dds_config import (
     default_discovery_env,
     udp_loopback_env,
 )
+from course_helpers.core.waiting import HANG_S
 from tests.helpers_children import report_participant_setup
 
 
@@ -58,7 +59,9 @@ def test_the_tuned_settings_are_in_the_profile_and_the_defaults_are_not():
     assert "<healthy_check_timeout_ms>300</healthy_check_timeout_ms>" in tuned
     assert '<data_reader profile_name="ros_discovery_info">' in tuned
     assert "<nanosec>100000000</nanosec></leaseAnnouncement>" in tuned
-    assert '<data_writer profile_name="service">' in tuned and "max_blocking_time" in tuned
+    assert '<data_writer profile_name="service">' in tuned
+    # a server waits for a late client's reply reader as long as any wait for the certain (not 0.1 s)
+    assert f"<max_blocking_time><sec>{int(HANG_S)}</sec><nanosec>0</nanosec></max_blocking_time>" in tuned
     assert "<sec>3</sec><nanosec>0</nanosec></leaseAnnouncement>" in defaults
     assert "ros_discovery_info" not in defaults and "transport" not in defaults and "service" not in defaults
 

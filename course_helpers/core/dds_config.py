@@ -35,9 +35,17 @@ Fast DDS 2.14 sources explain them):
   their slots give, and miss it more often.
 
 **Replies to early requests.** A client may see a service, and send its request, before the server
-has matched the client's reply reader; faster discovery makes that more likely. rmw_fastrtps then
-holds the reply for up to the reply writer's ``max_blocking_time`` (Fast DDS default 100 ms) and
-drops it after that. The course's ``service`` writer profile lets a server wait ``REPLY_WAIT_S``.
+has matched the client's reply reader: each side matches when the other's announcement of the
+endpoint reaches it, and the two announcements travel separately. rmw_fastrtps then holds the reply
+until that reader matches, for at most the reply writer's ``max_blocking_time`` (Fast DDS default
+100 ms), and drops it after that with "client will not receive response". The reader of a client
+whose request arrived matches for certain, only later on a busy machine, so the course's ``service``
+writer profile bounds that wait like every wait for what happens for certain: ``REPLY_WAIT_S`` is
+:data:`course_helpers.core.waiting.HANG_S`, which ends a hang and says nothing about speed. A bound
+of 1 s dropped a correct server's reply in a fresh-clone CI run, and a checker then reported "no
+answer". The wait costs nothing once the reader has matched; a server blocks for the whole bound
+only for a client whose reply reader never matches (a reply QoS it cannot accept: the course's
+checkers test compatibility first, with rclpy's own check).
 
 The shared-memory setting is a transport setting, and for the LOCALHOST discovery range rmw_fastrtps
 builds the transports itself (with the 1000 ms default). So the course's profile states that same
@@ -85,6 +93,7 @@ from contextlib import contextmanager
 from course_helpers.core.errors import CourseError
 from course_helpers.core.mapped_files import shm_files
 from course_helpers.core.udp_sockets import RTPS_PORTS, discovery_port, udp_sockets
+from course_helpers.core.waiting import HANG_S
 
 PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
@@ -97,7 +106,7 @@ DEFAULT_ACKNACK_S = 0.07  # s; Fast DDS's default initialAcknackDelay
 SHM_HEALTH_CHECK_MS = 300  # ms; the course's shared-memory port health-check timeout
 DEFAULT_SHM_HEALTH_CHECK_MS = 1000  # ms; Fast DDS's default (and what rmw's LOCALHOST set-up uses)
 SERVICE_PROFILE = "service"  # the profile rmw_fastrtps reads for every service's reply writer
-REPLY_WAIT_S = 1.0  # s; how long a server waits for the client's reply reader (Fast DDS default: 0.1 s)
+REPLY_WAIT_S = HANG_S  # s; how long a server waits for the client's reply reader (Fast DDS default: 0.1 s)
 PEER_IDS = 32  # participant ids on 127.0.0.1 that an announcement reaches (as rmw's LOCALHOST)
 
 # the profiles the course writes, by file name
