@@ -25,7 +25,8 @@ print('released', flush=True)
 
 
 @pytest.fixture
-def turns(tmp_path, monkeypatch):
+def hold(tmp_path, monkeypatch):
+    """``hold(kind)`` starts a test process that takes its turn, ``shared`` or ``alone``, in fresh locks."""
     monkeypatch.setenv(TURNS_VARIABLE, str(tmp_path))
     started = []
 
@@ -57,8 +58,7 @@ def _says(process: subprocess.Popen, word: str) -> None:
     assert process.stdout.readline().strip() == word
 
 
-def test_a_test_that_runs_alone_waits_for_the_others_and_holds_off_the_next(turns):
-    hold = turns
+def test_a_test_that_runs_alone_waits_for_the_others_and_holds_off_the_next(hold):
     first = hold("shared")
     _says(first, "holding")
     second = hold("shared")
@@ -80,8 +80,7 @@ def test_a_test_that_runs_alone_waits_for_the_others_and_holds_off_the_next(turn
     assert _free(STAGE, fcntl.LOCK_EX) and _free(TURNSTILE, fcntl.LOCK_EX)
 
 
-def test_a_killed_test_process_gives_up_its_turn(turns):
-    hold = turns
+def test_a_killed_test_process_gives_up_its_turn(hold):
     alone = hold("alone")
     _says(alone, "holding")
     alone.kill()
