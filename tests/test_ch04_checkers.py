@@ -12,14 +12,17 @@ import time
 
 import pytest
 from course_interfaces.srv import AddTwoInts
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.task import Future
 from std_msgs.msg import Float32
 from std_srvs.srv import SetBool, Trigger
 
+from course_helpers.checks import ch04_services as ch04_checks
 from course_helpers.checks.ch04_services import BATTERY_CASES, check_battery_server, check_relay_server
 from course_helpers.solutions.ch04_services import BatteryMonitor, SumRelay
+from tools.busy_loops import busy_loops
 
 from .criteria_registry import assert_reference_criteria
 
@@ -287,6 +290,55 @@ class RelayWithoutAwait(SumRelay):
         return response
 
 
+class RelayInOneGroup(SumRelay):
+    """Wrong: awaits the backend with its client in the service's own (default) group, so the answer
+    can only be taken after the callback that awaits it returns."""
+
+    def __init__(self):
+        Node.__init__(self, "sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints")
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request)
+
+
+class RelayThatNeverAnswers(SumRelay):
+    """Wrong: its callback awaits a future nothing completes; no deadlock the code shows, no error.
+    (Reentrant, so that a request asked again is received like the first.)"""
+
+    def __init__(self):
+        Node.__init__(self, "sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints",
+                                          callback_group=MutuallyExclusiveCallbackGroup())
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request,
+                                           callback_group=ReentrantCallbackGroup())
+
+    async def on_request(self, request, response):
+        await Future()
+        return response
+
+
+class RelayThatLosesItsFirstRequest(SumRelay):
+    """Right, but its first request is never answered, as if DDS had lost it (reentrant, so that the
+    requests after it are answered)."""
+
+    def __init__(self):
+        Node.__init__(self, "sum_relay")
+        self.backend = self.create_client(AddTwoInts, "add_two_ints",
+                                          callback_group=MutuallyExclusiveCallbackGroup())
+        self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request,
+                                           callback_group=ReentrantCallbackGroup())
+        self.requests = 0
+
+    async def on_request(self, request, response):
+        self.requests += 1
+        if self.requests == 1:
+            await Future()
+        return await super().on_request(request, response)
+
+
+# a solution whose node is reached gets its answers judged by the timing verdict (a missing answer on a
+# busy machine is asked again), so its test runs in make test's timing stage
+ANSWERS_JUDGED = pytest.mark.timing
+
 RELAY_WRONG = [
     pytest.param(RelayNeedsABackendName, {"the node can be created"}, id="constructor-argument"),
     pytest.param(RelayCalledRelay, {"the node is called sum_relay"}, id="name"),
@@ -295,14 +347,22 @@ RELAY_WRONG = [
     pytest.param(RelayWithSensorQos, {"the checker's client finds the service"}, id="sensor-qos"),
     pytest.param(RelayToAMisspelledBackend, {"it has a client of add_two_ints that found the backend"},
                  id="backend-name"),
-    pytest.param(BlockingRelay, {"it answers 2 + 3 without a deadlock"}, id="blocking-call"),
-    pytest.param(RelayThatForgetsTheSum, {"it answers 2 + 3 = 5"}, id="forgets-the-sum"),
-    pytest.param(LocalAdder, {"it asked the add_two_ints backend for the sum"}, id="adds-locally"),
-    pytest.param(RelayThatRemembers, {"it answers three requests sent at once"}, id="remembers"),
-    pytest.param(RelayWithoutAwait, {"its callbacks raised no exceptions"}, id="no-await"),
+    pytest.param(BlockingRelay, {"it answers 2 + 3 without a deadlock"},
+                 id="blocking-call", marks=ANSWERS_JUDGED),
+    pytest.param(RelayThatForgetsTheSum, {"it answers 2 + 3 = 5"},
+                 id="forgets-the-sum", marks=ANSWERS_JUDGED),
+    pytest.param(LocalAdder, {"it asked the add_two_ints backend for the sum"},
+                 id="adds-locally", marks=ANSWERS_JUDGED),
+    pytest.param(RelayThatRemembers, {"it answers three requests sent at once"},
+                 id="remembers", marks=ANSWERS_JUDGED),
+    pytest.param(RelayWithoutAwait, {"its callbacks raised no exceptions"},
+                 id="no-await", marks=ANSWERS_JUDGED),
+    pytest.param(RelayInOneGroup, {"it answers 2 + 3 without a deadlock"},
+                 id="one-group", marks=ANSWERS_JUDGED),
 ]
 
 
+@ANSWERS_JUDGED
 def test_relay_checker_accepts_the_reference_and_every_criterion_has_a_wrong_solution(rt):
     report = check_relay_server(SumRelay, rt)
     assert report.passed, report.summary()
@@ -316,6 +376,7 @@ def test_relay_checker_fails_each_criterion_on_a_wrong_solution(rt, wrong, faili
     assert failing <= _failed(report), report.summary()
 
 
+@ANSWERS_JUDGED
 def test_relay_checker_reports_the_deadlock_in_words_as_soon_as_the_callback_blocks(rt):
     started = time.monotonic()
     report = check_relay_server(BlockingRelay, rt)
@@ -325,6 +386,42 @@ def test_relay_checker_reports_the_deadlock_in_words_as_soon_as_the_callback_blo
     assert "waits in client.call() on the only thread that could deliver its answer" in failed[0].detail
     assert not any("call_async" in c.hint or "async def" in c.hint for c in report.criteria), (
         "hints point to the text; they do not write the fix")
+
+
+@ANSWERS_JUDGED
+def test_relay_checker_names_the_group_that_keeps_the_answer_out_as_soon_as_the_callback_awaits(rt):
+    started = time.monotonic()
+    report = check_relay_server(RelayInOneGroup, rt)
+    assert time.monotonic() - started < 10  # seen in the relay's state, not after a timeout
+    failed = [c for c in report.criteria if not c.passed]
+    assert [c.name for c in failed] == ["it answers 2 + 3 without a deadlock"], report.summary()
+    assert not failed[0].inconclusive, "a deadlock by construction is decided whatever the load"
+    assert ("sum_relay.on_request awaits an answer that its client add_two_ints can only take"
+            in failed[0].detail), failed[0].detail
+
+
+@ANSWERS_JUDGED
+def test_relay_checker_says_how_far_a_request_got_when_no_answer_comes(rt, monkeypatch):
+    """Nothing in the code decides a missing answer, so it is the timing verdict's: failed on a quiet
+    machine, inconclusive with the load on a busy one; either way the detail says where it stopped."""
+    monkeypatch.setattr(ch04_checks, "HANG_S", 1.0)  # the bound only ends a hang: shortened, not retuned
+    report = check_relay_server(RelayThatNeverAnswers, rt)
+    failed = [c for c in report.criteria if not c.passed]
+    assert [c.name for c in failed] == ["it answers 2 + 3 without a deadlock"], report.summary()
+    assert failed[0].detail == ("no answer within 1 s (your node's callback received 1 of 1 request(s) and "
+                                "returned 0; the backend answered 0)"), failed[0].detail
+
+
+@pytest.mark.makes_load  # busy loops in the timing stage would spoil the measurements beside them
+def test_relay_checker_asks_again_on_a_busy_machine_when_an_answer_is_missing(rt, monkeypatch):
+    monkeypatch.setattr(ch04_checks, "HANG_S", 1.0)  # the bound only ends a hang: shortened, not retuned
+    with busy_loops(2):
+        report = check_relay_server(RelayThatLosesItsFirstRequest, rt)
+    assert report.passed, report.summary()
+    first = next(c for c in report.criteria if c.name == "it answers 2 + 3 = 5")
+    assert first.detail == ("got 5; met on attempt 2 on a busy machine; attempt 1 missed: it answers 2 + 3 "
+                            "without a deadlock (no answer within 1 s (your node's callback received 1 of 1 "
+                            "request(s) and returned 0; the backend answered 0))"), first.detail
 
 
 COVERED = {"check_battery_server": _covered(BATTERY_WRONG), "check_relay_server": _covered(RELAY_WRONG)}

@@ -25,7 +25,8 @@ package uses these, each for a reason rclpy's public API does not cover (environ
   node); newer rclpy has ``_pending_tasks`` and ``_ready_tasks`` instead), in ``core/executors.py``
   and ``chapters/ch04_services.py``: let queued callbacks finish, or see them, before a teardown;
 * ``Client._pending_requests`` in ``chapters/ch04_services.py``: release a callback blocked in
-  ``client.call()`` at teardown;
+  ``client.call()`` at teardown; and in ``checks/ch04_services.py``: a callback that awaits an answer
+  its own mutually exclusive group keeps out (a deadlock by construction);
 * ``Client.call`` living in ``rclpy/client.py``, and CPython's ``sys._current_frames()``, in
   ``chapters/ch04_services.py``: a callback of a single-threaded executor waiting in ``call()``
   (a deadlock by construction);
@@ -190,7 +191,7 @@ def test_a_client_keeps_its_pending_requests_and_waits_in_client_py(context):
     try:
         client = node.create_client(Trigger, "private_api_trigger")
         assert isinstance(getattr(client, "_pending_requests", None), dict), _changed(
-            "Client._pending_requests", "chapters/ch04_services.py")
+            "Client._pending_requests", "chapters/ch04_services.py and checks/ch04_services.py")
         assert Client.call.__code__.co_filename.endswith(CLIENT_MODULE), _changed(
             f"where Client.call is defined (now {Client.call.__code__.co_filename})",
             "chapters/ch04_services.py (waiting_in_a_call)")

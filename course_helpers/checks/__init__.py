@@ -208,7 +208,9 @@ def judge_timed_scenario(report: CheckReport, statement: str, scenario) -> bool:
     measured again, and one still missed is reported as inconclusive with the load, never as a pass.
     A criterion that the code's structure already decides (a fifth element True: "these callbacks
     share a mutually exclusive group, so they can never overlap") fails at once, whatever the load.
-    The scenario must set up its own state each time it runs. Returns True if every criterion passed.
+    The scenario must set up its own state each time it runs. A scenario met only on a later attempt
+    says so in its first criterion's detail, with what the first attempt missed. Returns True if
+    every criterion passed.
     """
     from course_helpers.core.verdict import judge_timing
 
@@ -219,5 +221,16 @@ def judge_timed_scenario(report: CheckReport, statement: str, scenario) -> bool:
     def timing_met(results) -> bool:  # what load can change; structural failures need no retry
         return all(result[1] or result[4:] == (True,) for result in results)
 
-    verdict, results = judge_timing(statement, scenario, timing_met, show=missed)
+    attempts: list[list[tuple]] = []
+
+    def attempt() -> list[tuple]:
+        attempts.append(scenario())
+        return attempts[-1]
+
+    verdict, results = judge_timing(statement, attempt, timing_met, show=missed)
+    if verdict.passed and len(attempts) > 1 and results:  # say what the busy machine cost, on the first line
+        name, passed, detail, *rest = results[0]
+        first_miss = "; ".join(f"{r[0]} ({r[2]})" if r[2] else r[0] for r in attempts[0] if not r[1])
+        note = f"met on attempt {len(attempts)} on a busy machine; attempt 1 missed: {first_miss}"
+        results = [(name, passed, f"{detail}; {note}" if detail else note, *rest), *results[1:]]
     return report.add_timed(results, verdict)
