@@ -310,7 +310,6 @@ class ReentrantRelay(SumRelay):
                                           callback_group=MutuallyExclusiveCallbackGroup())
         self.service = self.create_service(AddTwoInts, "add_via_relay", self.on_request,
                                            callback_group=ReentrantCallbackGroup())
-        self.requests = 0
 
 
 class RelayThatNeverAnswers(ReentrantRelay):
@@ -323,6 +322,8 @@ class RelayThatNeverAnswers(ReentrantRelay):
 
 class RelayThatLosesItsFirstRequest(ReentrantRelay):
     """Right, but its first request is never answered, as if DDS had lost it; the ones after it are."""
+
+    requests = 0
 
     async def on_request(self, request, response):
         self.requests += 1

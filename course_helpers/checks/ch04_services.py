@@ -31,10 +31,6 @@ def offered_services(node: Node) -> dict[str, str]:
     return {service.service_name: interface_name(service.srv_type) for service in node.services}
 
 
-NO_ANSWER = "no answer"
-GROUP_DEADLOCK = "a deadlock"
-
-
 class CallbackWatch:
     """Counts the requests a service's callback received and the responses it returned.
 
@@ -66,34 +62,36 @@ class RelayAsked:
     """What came of requests sent to the relay at once: answered, stuck by construction, or not yet."""
 
     futures: list
-    stuck: str  # '' (all answered), 'node.callback' (waits in Client.call()), 'an exception', NO_ANSWER
-    where: str = ""  # with NO_ANSWER: how far the requests got
-
-    @property
-    def by_construction(self) -> bool:
-        """True unless nothing in the code explains the missing answer (then load or DDS may)."""
-        return self.stuck != NO_ANSWER
+    stuck: str = ""  # '' when every request was answered, else why not, in words
+    by_construction: bool = True  # False: nothing in the code explains the missing answer (load or DDS may)
 
 
 def _ask_relay(box, relay, client, watch, backend, requests) -> RelayAsked:
     """Send ``requests`` at once and wait until all are answered, or the relay deadlocks (a callback
     of ``box`` waits in Client.call(), or awaits an answer its own group keeps out: by construction),
     or a callback raised (its request is never answered).
-    ``HANG_S`` only bounds a hang of another kind: then ``where`` says how far the requests got."""
+    ``HANG_S`` only bounds a hang of another kind: then the answer says how far the requests got."""
     received, returned, answered, errors = watch.received, watch.returned, backend.answered, len(box.errors)
     futures = [client.call_async(request) for request in requests]
 
-    def deadlocked() -> str:
-        return box.waiting_in_a_call() or _awaits_in_its_own_group(relay, watch)
+    def deadlock() -> str:
+        waiting = box.waiting_in_a_call()
+        if waiting:
+            return f"{waiting} waits in client.call() on the only thread that could deliver its answer"
+        return _awaits_in_its_own_group(relay, watch)
 
-    poll_until(lambda: all(f.done() for f in futures) or bool(deadlocked()) or len(box.errors) > errors,
+    poll_until(lambda: all(f.done() for f in futures) or bool(deadlock()) or len(box.errors) > errors,
                HANG_S)
     if all(f.done() for f in futures):
-        return RelayAsked(futures, "")
-    stuck = deadlocked() or ("an exception" if len(box.errors) > errors else NO_ANSWER)
-    where = (f"your node's callback received {watch.received - received} of {len(requests)} request(s) "
-             f"and returned {watch.returned - returned}; the backend answered {backend.answered - answered}")
-    return RelayAsked(futures, stuck, where)
+        return RelayAsked(futures)
+    if stuck := deadlock():
+        return RelayAsked(futures, stuck)
+    if len(box.errors) > errors:
+        return RelayAsked(futures, "a callback raised an exception, so the request is never answered")
+    how_far = (f"your node's callback received {watch.received - received} of {len(requests)} "
+               f"request(s) and returned {watch.returned - returned}; the backend answered "
+               f"{backend.answered - answered}")
+    return RelayAsked(futures, f"no answer within {HANG_S:g} s ({how_far})", by_construction=False)
 
 
 def check_battery_server(node_class, rt=None) -> CheckReport:
@@ -253,7 +251,7 @@ def _check_relay_answers(box, report, relay, client, watch, backend, add_two_int
         before = backend.answered
         asked = _ask_relay(box, relay, client, watch, backend, [add_two_ints.Request(a=2, b=3)])
         if asked.stuck:
-            return [("it answers 2 + 3 without a deadlock", False, _stuck_detail(asked), DEADLOCK_HINT,
+            return [("it answers 2 + 3 without a deadlock", False, asked.stuck, DEADLOCK_HINT,
                      asked.by_construction)]
         total = asked.futures[0].result().sum
         asked_backend = backend.answered - before
@@ -270,7 +268,7 @@ def _check_relay_answers(box, report, relay, client, watch, backend, add_two_int
         asked = _ask_relay(box, relay, client, watch, backend, requests)
         if asked.stuck:
             return [("it answers three requests sent at once", False,
-                     f"not all were answered: {_stuck_detail(asked)}", REMEMBERS_HINT, asked.by_construction)]
+                     f"not all were answered: {asked.stuck}", REMEMBERS_HINT, asked.by_construction)]
         sums = [f.result().sum for f in asked.futures]
         return [("it answers three requests sent at once", sums == [a + b for a, b in pairs],
                  f"got {sums}", REMEMBERS_HINT, True)]
@@ -281,8 +279,8 @@ def _check_relay_answers(box, report, relay, client, watch, backend, add_two_int
 
 
 def _awaits_in_its_own_group(relay: Node, watch: CallbackWatch) -> str:
-    """'node.callback' while the relay's service callback runs and one of its clients waits for an
-    answer in the callback's own mutually exclusive group, or '' if none does.
+    """Why the relay is deadlocked, in words, while its service callback runs and one of its clients
+    waits for an answer in the callback's own mutually exclusive group; '' if none does.
 
     rclpy's executor holds a callback's group until the callback returns, across every ``await``,
     and runs no other callback of that group meanwhile: the client's answer can never be taken
@@ -297,20 +295,10 @@ def _awaits_in_its_own_group(relay: Node, watch: CallbackWatch) -> str:
         return ""
     for client in relay.clients:
         if client.callback_group is group and client._pending_requests:  # private: test_rclpy_private_api
-            return (f"{GROUP_DEADLOCK}: {relay.get_name()}.{watch.name} awaits an answer that its client "
+            return (f"a deadlock: {relay.get_name()}.{watch.name} awaits an answer that its client "
                     f"{client.srv_name} can only take after the callback returns (they share one mutually "
                     "exclusive callback group)")
     return ""
-
-
-def _stuck_detail(asked: RelayAsked) -> str:
-    if asked.stuck == NO_ANSWER:
-        return f"no answer within {HANG_S:g} s ({asked.where})"
-    if asked.stuck == "an exception":
-        return "a callback raised an exception, so the request is never answered"
-    if asked.stuck.startswith(GROUP_DEADLOCK):
-        return asked.stuck
-    return f"{asked.stuck} waits in client.call() on the only thread that could deliver its answer"
 
 
 def _unless(passed: bool, detail: str) -> str:
