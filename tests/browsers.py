@@ -29,6 +29,11 @@ CHROMIUM = os.environ.get("COURSE_CHROMIUM", "/usr/bin/chromium")
 # ms; the one bound on a browser test's wait for what the page does for certain (a page loads, a kernel
 # starts, a cell's output or a lab run arrives, an element is drawn): it ends a hang and judges nothing
 HANG_MS = 240_000
+# s; the bound on a whole browser test that sets none of its own (tests/conftest.py adds it): pytest's
+# default of 120 s is shorter than one of the test's own waits, so on a busy machine (the logic stage's
+# five workers on two cores) it cut short a QoS lab run that was still progressing, before the test's
+# own wait could say what, if anything, hung. Like HANG_MS it ends a hang and judges nothing.
+TEST_HANG_S = 3 * HANG_MS // 1000
 CHROMIUM_ARGS = ["--no-sandbox", "--headless", "--disable-gpu", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
 LAB_SETTINGS = {  # JupyterLab user settings for the tests: no autosave, every cell in the DOM, no news

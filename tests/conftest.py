@@ -15,6 +15,7 @@ import pytest
 from course_helpers import get_runtime, shutdown_runtime
 from course_helpers.core import verdict
 from tests import timing_turns
+from tests.browsers import TEST_HANG_S
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -58,6 +59,9 @@ def pytest_unconfigure(config):
 
 
 def pytest_collection_modifyitems(items):
+    for item in items:  # a browser test's whole bound is longer than any one of its waits (tests/browsers.py)
+        if item.get_closest_marker("browser") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(TEST_HANG_S))
     alone, shared = timing_turns.ALONE, timing_turns.SHARED
     loose = [item.nodeid for item in items
              if item.get_closest_marker(alone) and not item.get_closest_marker(shared)]
