@@ -15,7 +15,7 @@ import pytest
 from course_helpers import get_runtime, shutdown_runtime
 from course_helpers.core import verdict
 from tests import timing_turns
-from tests.browsers import TEST_HANG_S
+from tests.browsers import HANG_MS, TEST_HANG_S
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -59,9 +59,18 @@ def pytest_unconfigure(config):
 
 
 def pytest_collection_modifyitems(items):
-    for item in items:  # a browser test's whole bound is longer than any one of its waits (tests/browsers.py)
-        if item.get_closest_marker("browser") and not item.get_closest_marker("timeout"):
+    short = []  # a browser test's whole bound is longer than any one of its waits (tests/browsers.py)
+    for item in items:
+        if not item.get_closest_marker("browser"):
+            continue
+        bound = item.get_closest_marker("timeout")
+        if bound is None:
             item.add_marker(pytest.mark.timeout(TEST_HANG_S))
+        elif bound.args and bound.args[0] * 1000 <= HANG_MS:
+            short.append(f"{item.nodeid} ({bound.args[0]} s)")
+    if short:
+        raise pytest.UsageError(f"a browser test's timeout must exceed one of its waits (HANG_MS = "
+                                f"{HANG_MS} ms, tests/browsers.py): {', '.join(short)}")
     alone, shared = timing_turns.ALONE, timing_turns.SHARED
     loose = [item.nodeid for item in items
              if item.get_closest_marker(alone) and not item.get_closest_marker(shared)]
