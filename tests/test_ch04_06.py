@@ -36,7 +36,9 @@ from course_helpers.chapters.ch06_parameters import (
     load_parameter_file,
     params_file_arguments,
 )
+from course_helpers.core.kept_contexts import KEEPER_NODE
 from course_helpers.core.node_hook import hook_installed
+from course_helpers.core.participants import participant_of
 from course_helpers.nodes import Listener, Talker
 from course_helpers.solutions.ch05_actions import NavigationServer
 from tests.timing import assert_timing
@@ -169,6 +171,22 @@ def test_fixed_callers_complete(rt, caller, threads):
     outcome = deadlock_demo(caller, threads=threads, timeout_s=10.0)
     assert outcome.completed and outcome.answer == 42, str(outcome)
     assert str(outcome).startswith("completed:")
+
+
+def test_sandboxes_share_one_kept_participant_and_leave_no_node_behind(rt):
+    """A sandbox's nodes go with it; its DDS participant does not (core/kept_contexts.py: destroying a
+    participant can hang the process for good), so two sandboxes of one namespace share one."""
+    seen = []
+    for _ in range(2):
+        with IsolatedExecutor("single", namespace="/kept") as box:
+            box.add(Talker)
+            seen.append((box.context, participant_of(rt, "/kept/talker")))
+        rt.wait_until(lambda: "/kept/talker" not in rt.graph_nodes(), 10, "the sandbox's talker to leave")
+    (first_context, first), (second_context, second) = seen
+    assert second_context is first_context and first_context.ok()
+    assert second == first, "each sandbox made a participant of its own"
+    assert f"/kept/{KEEPER_NODE}" in rt.graph_nodes(include_hidden=True)
+    assert not [name for name in rt.graph_nodes() if name.startswith("/kept/")], "the keeper is hidden"
 
 
 def test_the_sandbox_refuses_what_it_cannot_run(rt):

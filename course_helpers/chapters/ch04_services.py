@@ -1,11 +1,11 @@
 """Chapter 04 (services): the deadlock demo and the topic-vs-service latency measurement.
 
-* :class:`Sandbox` gives the deadlock demo a context of its own and a thread for the
-  executor the notebook wires in it; it is torn down even if a callback hangs in
-  ``client.call()``, so the kernel's runtime never hangs. :func:`spin_until_answered`
-  runs such an executor and reports whether the caller got its answer within a time
-  limit. :class:`IsolatedExecutor` is a sandbox that makes its executor itself (the
-  checkers use it).
+* :class:`Sandbox` gives the deadlock demo a context apart from the kernel's (kept for the process:
+  ``core/kept_contexts.py`` says why) and a thread for the executor the notebook wires in it; its
+  nodes are torn down even if a callback hangs in ``client.call()``, so the kernel's runtime never
+  hangs. :func:`spin_until_answered` runs such an executor and reports whether the caller got its
+  answer within a time limit. :class:`IsolatedExecutor` is a sandbox that makes its executor itself
+  (the checkers use it).
 * :func:`measure_round_trips` times, against a node in a child process, how long a
   caller waits for ``publish()``, a topic message, a topic ping-pong and a service
   call; :func:`plot_round_trips` draws the result.
@@ -22,14 +22,13 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Int64
 
-from course_helpers.core.dds_config import init_context
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.executors import SpinThread, plain_executor, queued_tasks
+from course_helpers.core.kept_contexts import kept_context, kept_nodes
 from course_helpers.core.node_hook import build_nodes
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_namespace
@@ -66,7 +65,7 @@ class AdderServer(Node):
 
 # ---------------------------------------------------------------------- the sandbox
 class Sandbox:
-    """A context of its own for nodes that may deadlock, and a thread that spins their executor.
+    """A context apart from the kernel's for nodes that may deadlock, and a thread that spins their executor.
 
     The notebook wires the executor itself; the sandbox only runs it, and tears everything down
     even if a callback hangs::
@@ -83,7 +82,9 @@ class Sandbox:
             not clash with the notebook's own.
 
     On exit, any service call still waiting is failed on purpose, which releases a callback stuck
-    in ``client.call()``; then the thread is joined, the nodes destroyed and the context shut down.
+    in ``client.call()``; then the thread is joined and the nodes destroyed. The context itself is
+    the process's kept one for the namespace (:func:`~course_helpers.core.kept_contexts.kept_context`):
+    its DDS participant outlives the sandbox, because destroying a participant can hang for good.
     Exceptions that callbacks raised while the sandbox ran are in ``errors``.
     """
 
@@ -91,16 +92,14 @@ class Sandbox:
         self.namespace = check_namespace(namespace)
         self.errors: list[str] = []
         self.nodes: list[Node] = []
-        self.context: Context | None = None
+        self.context = None  # an rclpy Context inside the `with` block
         self.executor = None
         self._spinner: SpinThread | None = None
         self._closing = False
 
     def __enter__(self):
         domain_id = get_runtime().domain.domain_id  # same domain: the kernel can see these nodes
-        self.context = Context()
-        args = ["--ros-args", "--disable-stdout-logs", "-r", f"__ns:={self.namespace}"]
-        init_context(self.context, domain_id, args)
+        self.context = kept_context(domain_id, self.namespace)
         self._closing = False
         return self
 
@@ -167,7 +166,7 @@ class Sandbox:
         return released
 
     def close(self) -> None:
-        """Release stuck calls, stop the thread, destroy the nodes and shut the context down."""
+        """Release stuck calls, stop the thread and destroy the nodes (the kept context stays)."""
         if self.context is None:
             return
         self._closing = True
@@ -181,12 +180,13 @@ class Sandbox:
             for node in self.nodes:
                 self.executor.remove_node(node)
             self.executor.shutdown(timeout_sec=1.0)
+        keepers = kept_nodes(self.context)
         for node in self.nodes:
-            node.destroy_node()
+            if node not in keepers:
+                node.destroy_node()
         self.nodes.clear()
         if self.executor is not None:
             self._collect_task_errors()
-        self.context.try_shutdown()
         self.context, self.executor, self._spinner = None, None, None
 
     def _released_and_idle(self) -> bool:
