@@ -11,6 +11,7 @@ import pytest
 from std_msgs.msg import String
 
 from course_helpers import CourseError, WaitTimeout
+from course_helpers.chapters.ch04_services import IsolatedExecutor
 from course_helpers.core import child as child_module
 from course_helpers.core.names import full_name
 from course_helpers.core.node_hook import bare_node
@@ -263,6 +264,8 @@ def test_show_status_lists_a_textbook_node_of_the_default_context_as_not_the_cou
     import rclpy
     from rclpy.node import Node
 
+    with IsolatedExecutor(namespace="/status_check"):  # leaves the course's kept participant, not listed
+        pass
     rclpy.init()  # a textbook paste: the default context, outside the course's runtime
     try:
         node = Node("x")

@@ -48,6 +48,7 @@ def kept_context(domain_id: int, namespace: str) -> Context:
         return context
 
 
-def kept_nodes(context: Context) -> list[Node]:
-    """The node that holds ``context``'s participant, if it is a kept context (else nothing)."""
-    return [keeper for kept, keeper in _kept.values() if kept is context]
+def keepers() -> list[Node]:
+    """The hidden nodes that hold the kept contexts' participants: the course's own, never a student's."""
+    with _lock:
+        return [keeper for _context, keeper in _kept.values()]
