@@ -28,7 +28,7 @@ from std_msgs.msg import Int64
 
 from course_helpers.core.errors import CourseError, WaitTimeout
 from course_helpers.core.executors import SpinThread, plain_executor, queued_tasks
-from course_helpers.core.kept_contexts import keepers, kept_context
+from course_helpers.core.kept_contexts import kept_context
 from course_helpers.core.node_hook import build_nodes
 from course_helpers.core.runtime import get_runtime
 from course_helpers.core.validation import check_namespace
@@ -180,10 +180,8 @@ class Sandbox:
             for node in self.nodes:
                 self.executor.remove_node(node)
             self.executor.shutdown(timeout_sec=1.0)
-        kept = keepers()
-        for node in self.nodes:
-            if node not in kept:
-                node.destroy_node()
+        for node in self.nodes:  # never the kept context's keeper: no executor spins it
+            node.destroy_node()
         self.nodes.clear()
         if self.executor is not None:
             self._collect_task_errors()
