@@ -16,6 +16,12 @@ destroyed soon after it was made is the likeliest to meet one. The course's sand
 that. A kept context is made at its first use and then holds its participant through a hidden node
 (leading underscore: ``rt.graph_nodes()`` and ``ros2 node list`` leave it out), so the nodes built and
 destroyed in it never take the participant down with them.
+
+The keeper is a bare rcl node, without a single endpoint (:func:`.node_hook.bare_node`, as a child
+process's keeper is). An rclpy ``Node`` would add a ``/parameter_events`` writer, announced apart from
+the ``ros_discovery_info`` update that names its node: the project's CI on ``3d681dd`` met a kernel
+whose graph kept such a writer under ``_NODE_NAME_UNKNOWN_`` for more than a minute. The bare keeper's
+first update is also its last, and it is no ``Node`` for ``rt.status()`` to count.
 """
 
 from __future__ import annotations
@@ -23,13 +29,12 @@ from __future__ import annotations
 import threading
 
 from rclpy.context import Context
-from rclpy.node import Node
 
 from course_helpers.core.dds_config import init_context
-from course_helpers.core.node_hook import outside_builds
+from course_helpers.core.node_hook import bare_node
 
 KEEPER_NODE = "_course_kept_participant"
-_kept: dict[tuple[int, str], tuple[Context, Node]] = {}
+_kept: dict[tuple[int, str], tuple[Context, object]] = {}  # the context and its keeper
 _lock = threading.Lock()
 
 
@@ -42,13 +47,5 @@ def kept_context(domain_id: int, namespace: str) -> Context:
             return _kept[key][0]
         context = Context()
         init_context(context, domain_id, ["--ros-args", "--disable-stdout-logs", "-r", f"__ns:={namespace}"])
-        with outside_builds():  # a sandbox may be opened while a notebook class is being built
-            keeper = Node(KEEPER_NODE, context=context, enable_rosout=False, start_parameter_services=False)
-        _kept[key] = (context, keeper)
+        _kept[key] = (context, bare_node(context, KEEPER_NODE, namespace))
         return context
-
-
-def keepers() -> list[Node]:
-    """The hidden nodes that hold the kept contexts' participants: the course's own, never a student's."""
-    with _lock:
-        return [keeper for _context, keeper in _kept.values()]

@@ -129,13 +129,14 @@ def destroy_fully(node: Node) -> None:
         node._state_machine.destroy_when_not_in_use()
 
 
-def bare_node(context, name: str):
+def bare_node(context, name: str, namespace: str = ""):
     """An rcl node without a single endpoint (no rosout, no parameter services or events).
 
     rmw lists it in the graph, and it keeps the context's participant alive; it is the
-    ``rclpy`` handle, not a ``Node``. End it with ``destroy_when_not_in_use()``.
+    ``rclpy`` handle, not a ``Node`` (so no ``Node`` search of the process finds it). End it with
+    ``destroy_when_not_in_use()``.
     """
     from rclpy.impl.implementation_singleton import rclpy_implementation
 
     with context.handle:
-        return rclpy_implementation.Node(name, "", context.handle, None, False, False)
+        return rclpy_implementation.Node(name, namespace, context.handle, None, False, False)

@@ -6,7 +6,6 @@ import os
 
 import rclpy
 
-from course_helpers.core.kept_contexts import keepers
 from course_helpers.core.other_kernels import other_kernels
 from course_helpers.core.versions import rclpy_version
 
@@ -43,10 +42,9 @@ def nodes_outside(runtime) -> list[str]:
     from rclpy.utilities import get_default_context
 
     default = get_default_context()
-    kept = keepers()  # the course's own, holding its sandboxes' participant (core/kept_contexts.py)
     found = set()
     for obj in gc.get_objects():
-        if not isinstance(obj, Node) or obj.context is runtime.context or obj in kept:
+        if not isinstance(obj, Node) or obj.context is runtime.context:
             continue
         try:
             name = obj.get_fully_qualified_name()  # raises once the node is destroyed
