@@ -30,8 +30,15 @@ from std_msgs.msg import String, UInt8MultiArray
 from course_helpers import CourseError
 from course_helpers.chapters import ch07_dds as dds
 from course_helpers.chapters import ch08_qos as qos
-from course_helpers.chapters.ch07_dds.server import SERVER_GROUP, SERVER_LABEL, udp_port_bound
+from course_helpers.chapters.ch07_dds.server import (
+    SERVER_GROUP,
+    SERVER_LABEL,
+    SERVER_PORTS,
+    ephemeral_ports,
+    udp_port_bound,
+)
 from course_helpers.core import processes
+from course_helpers.core.udp_sockets import GRAPH_PORTS
 from course_helpers.core.verdict import reusing
 from course_helpers.core.waiting import HANG_S
 from tests.timing import assert_timing
@@ -77,6 +84,8 @@ def test_discovery_is_measured_and_range_off_finds_nothing(rt):
 
 def test_discovery_server_connects_clients_only_through_it_and_is_reaped(rt):
     port = dds.free_udp_port()
+    # a port no socket is given by chance, so a server restarted on it finds it free (server.py)
+    assert port in SERVER_PORTS and port not in ephemeral_ports() and port < GRAPH_PORTS[0], port
     env = {"ROS_DISCOVERY_SERVER": f"127.0.0.1:{port}"}
     rt.spawn("ds_talker", "course_helpers.nodes:make_talker", params={"name": "ds_talker", "rate_hz": 10.0},
              env=env)

@@ -7,6 +7,7 @@ kernel, a re-run stops the old one first, and the layer reaps it at exit.
 from __future__ import annotations
 
 import os
+import random
 import signal
 import socket
 import sys
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 
 from course_helpers.core import dds_config, processes
 from course_helpers.core.errors import CourseError
+from course_helpers.core.udp_sockets import GRAPH_PORTS
 from course_helpers.core.waiting import poll_until
 
 SERVER_BINARY = "fast-discovery-server"
@@ -22,11 +24,42 @@ SERVER_GROUP = "server"
 READY_TEXT = "Server is running"  # what the server prints once its participant is up
 
 
+# Ports no socket gets unless it asks for that very port: below the ports Fast DDS picks by itself (a
+# participant's graph port, then the RTPS domains' ports: core/udp_sockets.py) and the OS's ephemeral
+# ports (given to every socket bound to port 0, as each Fast DDS sending socket is). A server restarted
+# on its old port (chapter 07's server_failure_experiment) finds it free: the project's image test saw a
+# restart on an ephemeral port fail, "wasn't able to allocate the specified listening port", after the
+# clients around it had opened sockets for two leases.
+SERVER_PORTS = range(GRAPH_PORTS[0] - 1000, GRAPH_PORTS[0])
+LINUX_EPHEMERAL_PORTS = range(32768, 61000)  # ip_local_port_range's default, if /proc does not say
+
+
+def ephemeral_ports() -> range:
+    """The ports the OS hands to sockets bound to port 0 (``net.ipv4.ip_local_port_range``)."""
+    try:
+        with open("/proc/sys/net/ipv4/ip_local_port_range", encoding="ascii") as handle:
+            low, high = (int(part) for part in handle.read().split())
+    except (OSError, ValueError):
+        return LINUX_EPHEMERAL_PORTS
+    return range(low, high + 1)
+
+
 def free_udp_port() -> int:
-    """A UDP port on 127.0.0.1 that nothing is bound to right now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
+    """A UDP port on 127.0.0.1 that nothing is bound to right now, from :data:`SERVER_PORTS` (no socket
+    takes one of those by chance), tried in random order (two kernels of one host seldom pick alike)."""
+    ephemeral = ephemeral_ports()
+    candidates = [port for port in SERVER_PORTS if port not in ephemeral]
+    random.shuffle(candidates)
+    for port in candidates:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise CourseError(f"no UDP port in {SERVER_PORTS.start}..{SERVER_PORTS.stop - 1} outside the OS's "
+                      f"ephemeral ports ({ephemeral.start}..{ephemeral.stop - 1}) is free: pass port= "
+                      f"(1024..65535) to start_discovery_server")
 
 
 def udp_port_bound(port: int) -> bool:
