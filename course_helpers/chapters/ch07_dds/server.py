@@ -27,9 +27,9 @@ READY_TEXT = "Server is running"  # what the server prints once its participant 
 # Ports no socket gets unless it asks for that very port: below the ports Fast DDS picks by itself (a
 # participant's graph port, then the RTPS domains' ports: core/udp_sockets.py) and the OS's ephemeral
 # ports (given to every socket bound to port 0, as each Fast DDS sending socket is). A server restarted
-# on its old port (chapter 07's server_failure_experiment) finds it free: the project's image test saw a
-# restart on an ephemeral port fail, "wasn't able to allocate the specified listening port", after the
-# clients around it had opened sockets for two leases.
+# on its old port (chapter 07's server_failure_experiment) finds it free. A fresh-clone CI run's image
+# stage saw a restart on an ephemeral port fail ("wasn't able to allocate the specified listening
+# port") after the clients around it had opened sockets for two leases.
 SERVER_PORTS = range(GRAPH_PORTS[0] - 1000, GRAPH_PORTS[0])
 LINUX_EPHEMERAL_PORTS = range(32768, 61000)  # ip_local_port_range's default, if /proc does not say
 
