@@ -407,9 +407,21 @@ def test_relay_checker_says_how_far_a_request_got_when_no_answer_comes(rt, monke
 @pytest.mark.makes_load  # busy loops in the timing stage would spoil the measurements beside them
 def test_relay_checker_asks_again_on_a_busy_machine_when_an_answer_is_missing(rt, monkeypatch):
     monkeypatch.setattr(ch04_checks, "HANG_S", 1.0)  # the bound only ends a hang: shortened, not retuned
+    clients = []  # the checker's clients of add_via_relay, kept so that none is collected
+    create_client = Node.create_client
+
+    def listed(node, srv_type, srv_name, *args, **kwargs):
+        client = create_client(node, srv_type, srv_name, *args, **kwargs)
+        if srv_name.endswith("add_via_relay"):
+            clients.append(client)
+        return client
+
+    monkeypatch.setattr(Node, "create_client", listed)
     with busy_loops(2):
         report = check_relay_server(RelayThatLosesItsFirstRequest, rt)
     assert report.passed, report.summary()
+    # the criterion's client, then one for each attempt: attempt 2 asks from a pair that lost nothing
+    assert len(clients) >= 4, f"{len(clients)} client(s) for the criterion and three attempts"
     first = next(c for c in report.criteria if c.name == "it answers 2 + 3 = 5")
     assert first.detail == ("got 5; met on attempt 2 on a busy machine; attempt 1 missed: it answers 2 + 3 "
                             "without a deadlock (no answer within 1 s (your node's callback received 1 of 1 "

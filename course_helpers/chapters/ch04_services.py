@@ -125,6 +125,11 @@ class Sandbox:
         self._spinner = SpinThread(executor, "isolated-executor", self._record_error).start()
 
     @property
+    def spinning(self) -> bool:
+        """True while the sandbox's thread spins its executor."""
+        return self._spinner is not None and self._spinner.alive
+
+    @property
     def single_threaded(self) -> bool:
         return isinstance(self.executor, SingleThreadedExecutor)
 

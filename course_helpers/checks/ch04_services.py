@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import partial
 
 from rclpy.node import Node
 from std_msgs.msg import Float32
@@ -18,6 +20,7 @@ from course_helpers.checks import (
 )
 from course_helpers.core.names import full_name
 from course_helpers.core.runtime import get_runtime
+from course_helpers.core.sim_clock import MATCH_TIMEOUT_S
 from course_helpers.core.validation import interface_name
 from course_helpers.core.waiting import poll_until
 
@@ -66,11 +69,37 @@ class RelayAsked:
     by_construction: bool = True  # False: nothing in the code explains the missing answer (load or DDS may)
 
 
-def _ask_relay(box, relay, client, watch, backend, requests) -> RelayAsked:
-    """Send ``requests`` at once and wait until all are answered, or the relay deadlocks (a callback
-    of ``box`` waits in Client.call(), or awaits an answer its own group keeps out: by construction),
-    or a callback raised (its request is never answered).
+@contextmanager
+def _client_for_one_attempt(probe: Node, service):
+    """A new client of ``service`` on the checker's node, and whether it reached the service; destroyed
+    on exit.
+
+    An attempt of a timed scenario sets up its own state (:func:`judge_timed_scenario`), the client
+    included: a request lost between one writer and one reader is then never asked again of the same
+    pair. A fresh-clone CI run met such a pair once: the client had matched the relay's request reader,
+    and three requests, 30 s apart, never reached the relay's callback.
+    """
+    client = probe.create_client(service.srv_type, service.service_name)
+    try:
+        yield client, client_reaches(client, service)[0]
+    finally:
+        probe.destroy_client(client)
+
+
+def _ask_relay(box, relay, connect, watch, backend, requests) -> RelayAsked:
+    """Send ``requests`` at once, from a client that ``connect()`` makes for this attempt, and wait
+    until all are answered, or the relay deadlocks (a callback of ``box`` waits in Client.call(), or
+    awaits an answer its own group keeps out: by construction), or a callback raised (its request is
+    never answered).
     ``HANG_S`` only bounds a hang of another kind: then the answer says how far the requests got."""
+    with connect() as (client, reached):
+        if not reached:
+            return RelayAsked([], f"the checker's new client did not reach add_via_relay within "
+                                  f"{MATCH_TIMEOUT_S:g} s", by_construction=False)
+        return _ask_relay_from(box, relay, client, watch, backend, requests)
+
+
+def _ask_relay_from(box, relay, client, watch, backend, requests) -> RelayAsked:
     received, returned, answered, errors = watch.received, watch.returned, backend.answered, len(box.errors)
     futures = [client.call_async(request) for request in requests]
 
@@ -90,7 +119,8 @@ def _ask_relay(box, relay, client, watch, backend, requests) -> RelayAsked:
         return RelayAsked(futures, "a callback raised an exception, so the request is never answered")
     how_far = (f"your node's callback received {watch.received - received} of {len(requests)} "
                f"request(s) and returned {watch.returned - returned}; the backend answered "
-               f"{backend.answered - answered}")
+               f"{backend.answered - answered}"
+               f"{'' if box.spinning else '; the executor of your node had stopped'}")
     return RelayAsked(futures, f"no answer within {HANG_S:g} s ({how_far})", by_construction=False)
 
 
@@ -211,6 +241,7 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
                            if s.service_name == full_name(namespace, "add_via_relay"))
             watch = CallbackWatch(service)
             ready, why = client_reaches(client, service)
+            probe.destroy_client(client)  # each attempt below asks from a client of its own
             if not report.add("the checker's client finds the service", ready, why,
                               "The service exists but a default client cannot reach it: did you give it a "
                               "QoS profile of its own?"):
@@ -224,7 +255,8 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
                               "TODO 1: the backend is the add_two_ints service; section 3 shows how a "
                               "node creates a client."):
                 return report
-            _check_relay_answers(box, report, relay, client, watch, backend, AddTwoInts)
+            connect = partial(_client_for_one_attempt, probe, service)
+            _check_relay_answers(box, report, relay, connect, watch, backend, AddTwoInts)
         finally:
             rt.remove(probe)
             errors = list(box.errors)
@@ -238,7 +270,7 @@ DEADLOCK_HINT = ("Section 5 and the exercise's two bullets: why can a callback t
 REMEMBERS_HINT = "Does something your callback keeps on self outlive its own request?"
 
 
-def _check_relay_answers(box, report, relay, client, watch, backend, add_two_ints) -> None:
+def _check_relay_answers(box, report, relay, connect, watch, backend, add_two_ints) -> None:
     """Ask the relay for sums, judged by the one timing verdict (:func:`judge_timed_scenario`).
 
     A deadlock, an exception and a wrong sum are decided by the code, at once. An answer still
@@ -249,7 +281,7 @@ def _check_relay_answers(box, report, relay, client, watch, backend, add_two_int
 
     def one_sum() -> list[tuple]:
         before = backend.answered
-        asked = _ask_relay(box, relay, client, watch, backend, [add_two_ints.Request(a=2, b=3)])
+        asked = _ask_relay(box, relay, connect, watch, backend, [add_two_ints.Request(a=2, b=3)])
         if asked.stuck:
             return [("it answers 2 + 3 without a deadlock", False, asked.stuck, DEADLOCK_HINT,
                      asked.by_construction)]
@@ -265,7 +297,7 @@ def _check_relay_answers(box, report, relay, client, watch, backend, add_two_int
 
     def three_sums() -> list[tuple]:
         requests = [add_two_ints.Request(a=a, b=b) for a, b in pairs]
-        asked = _ask_relay(box, relay, client, watch, backend, requests)
+        asked = _ask_relay(box, relay, connect, watch, backend, requests)
         if asked.stuck:
             return [("it answers three requests sent at once", False,
                      f"not all were answered: {asked.stuck}", REMEMBERS_HINT, asked.by_construction)]
