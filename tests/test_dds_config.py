@@ -66,6 +66,43 @@ def test_the_tuned_settings_are_in_the_profile_and_the_defaults_are_not():
     assert "ros_discovery_info" not in defaults and "transport" not in defaults and "service" not in defaults
 
 
+def _fast_dds_errors(rt, tmp_path, profile: str) -> list[str]:
+    """The errors Fast DDS logs (to standard output, its default consumer) while a fresh process makes
+    one node with ``profile``."""
+    import os
+    import subprocess
+    import sys
+
+    path = tmp_path / "profile.xml"
+    path.write_text(profile)
+    env = {**os.environ, "FASTRTPS_DEFAULT_PROFILES_FILE": str(path),
+           "ROS_DOMAIN_ID": str(rt.domain.domain_id)}
+    script = ("import rclpy; rclpy.init(); rclpy.create_node('profile_reader').destroy_node(); "
+              "rclpy.shutdown()")
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                          timeout=HANG_S)
+    assert done.returncode == 0, done.stderr
+    return [line for line in (done.stdout + done.stderr).splitlines() if "Error" in line]
+
+
+def test_discovery_between_participants_of_one_process_goes_through_the_transports(rt, tmp_path):
+    """Every profile the course writes keeps Fast DDS's in-process shortcut for user data only (see
+    INTRAPROCESS_DELIVERY), and Fast DDS reads that setting without an error."""
+    for profile in (dds_config.profile_xml(), dds_config.profile_xml(()), dds_config.profile_xml(("UDPv4",)),
+                    dds_config.profile_xml((), tuned=False), dds_config.profile_xml(slot=5, domain_id=42),
+                    dds_config.profile_xml(lease_s=2.0)):
+        assert ("<library_settings><intraprocess_delivery>USER_DATA_ONLY</intraprocess_delivery>"
+                "</library_settings>") in profile
+    assert _fast_dds_errors(rt, tmp_path, dds_config.profile_xml()) == []
+
+
+def test_fast_dds_names_a_misspelt_library_setting(rt, tmp_path, monkeypatch):
+    """The check above can fail: a value Fast DDS does not know is an error it logs."""
+    monkeypatch.setattr(dds_config, "INTRAPROCESS_DELIVERY", "USER_DATA")
+    errors = _fast_dds_errors(rt, tmp_path, dds_config.profile_xml())
+    assert any("intraprocess_delivery" in line for line in errors), errors
+
+
 def test_a_child_on_a_slot_tells_the_kernel_last():
     """A child lists the discovery ports of participant ids 31 down to 0: the kernel (id 0, the first
     participant of its domain) hears the child's announcement last, and its answer comes back after

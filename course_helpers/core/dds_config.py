@@ -108,6 +108,13 @@ DEFAULT_SHM_HEALTH_CHECK_MS = 1000  # ms; Fast DDS's default (and what rmw's LOC
 SERVICE_PROFILE = "service"  # the profile rmw_fastrtps reads for every service's reply writer
 REPLY_WAIT_S = HANG_S  # s; how long a server waits for the client's reply reader (Fast DDS default: 0.1 s)
 PEER_IDS = 32  # participant ids on 127.0.0.1 that an announcement reaches (as rmw's LOCALHOST)
+# Discovery between two participants of one process goes through the transports, as between processes;
+# only user data takes Fast DDS's in-process shortcut. With the shortcut for discovery too (Fast DDS's
+# default, FULL), a kernel's participant stopped hearing which readers its sandboxes' kept participant
+# (kept_contexts.py) made: after a few hundred sandboxes beside two busy loops, the kernel's graph listed
+# a new relay's reply writer but never its request reader, for a minute and more, so no client of it ever
+# became ready (Fast DDS 2.14.5; RTPSDomainImpl::should_intraprocess_between).
+INTRAPROCESS_DELIVERY = "USER_DATA_ONLY"
 
 # the profiles the course writes, by file name
 LOCALHOST_PROFILE = "course_localhost.xml"  # shared memory + UDP on 127.0.0.1, tuned timing
@@ -151,7 +158,9 @@ def profile_xml(transports: tuple[str, ...] = ("SHM", "UDPv4"), tuned: bool = Tr
     announcement = ANNOUNCEMENT_S if tuned else DEFAULT_ANNOUNCEMENT_S
     health_ms = SHM_HEALTH_CHECK_MS if tuned else DEFAULT_SHM_HEALTH_CHECK_MS
     lines = ['<?xml version="1.0" encoding="UTF-8" ?>',
-             '<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">']
+             '<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">',
+             f"  <library_settings><intraprocess_delivery>{INTRAPROCESS_DELIVERY}</intraprocess_delivery>"
+             "</library_settings>"]
     if transports:
         lines.append("  <transport_descriptors>")
         if "SHM" in transports:
