@@ -71,8 +71,8 @@ class RelayAsked:
 
 @contextmanager
 def _client_for_one_attempt(probe: Node, service):
-    """A new client of ``service`` on the checker's node, and whether it reached the service; destroyed
-    on exit.
+    """A new client of ``service`` on the checker's node, whether it reached the service, and why not;
+    destroyed on exit.
 
     An attempt of a timed scenario sets up its own state (:func:`judge_timed_scenario`), the client
     included: a request lost between one writer and one reader is then never asked again of the same
@@ -81,7 +81,7 @@ def _client_for_one_attempt(probe: Node, service):
     """
     client = probe.create_client(service.srv_type, service.service_name)
     try:
-        yield client, client_reaches(client, service)[0]
+        yield client, *client_reaches(client, service)
     finally:
         probe.destroy_client(client)
 
@@ -92,7 +92,7 @@ def _ask_relay(box, relay, connect, watch, backend, requests) -> RelayAsked:
     awaits an answer its own group keeps out: by construction), or a callback raised (its request is
     never answered).
     ``HANG_S`` only bounds a hang of another kind: then the answer says how far the requests got."""
-    with connect() as (client, reached):
+    with connect() as (client, reached, _why):
         if not reached:
             return RelayAsked([], f"the checker's new client did not reach add_via_relay within "
                                   f"{MATCH_TIMEOUT_S:g} s", by_construction=False)
@@ -236,12 +236,11 @@ def check_relay_server(node_class, rt=None) -> CheckReport:
                               f"it offers {offered}" if offered else "it offers no add_via_relay service",
                               "TODO 2: the exercise names the service; its type is the backend's."):
                 return report
-            client = probe.create_client(AddTwoInts, full_name(namespace, "add_via_relay"))
             service = next(s for s in relay.services
                            if s.service_name == full_name(namespace, "add_via_relay"))
             watch = CallbackWatch(service)
-            ready, why = client_reaches(client, service)
-            probe.destroy_client(client)  # each attempt below asks from a client of its own
+            with _client_for_one_attempt(probe, service) as (_client, ready, why):
+                pass  # each attempt below asks from a client of its own
             if not report.add("the checker's client finds the service", ready, why,
                               "The service exists but a default client cannot reach it: did you give it a "
                               "QoS profile of its own?"):
