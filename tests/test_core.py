@@ -182,24 +182,28 @@ ORPHAN_LAUNCHER = """
 import os, signal, subprocess, sys, time
 signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})  # so the kernel-death signal is lost
 env = dict(os.environ, COURSE_PARENT_PID=str(os.getpid()))
+out = open(sys.argv[1], 'w')
 child = subprocess.Popen([sys.executable, '-m', 'course_helpers.core.child', 'run',
                           'course_helpers.nodes.chatter:Talker', '{}'], env=env,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                         stdout=out, stderr=subprocess.DEVNULL)
 print(child.pid, flush=True)
-time.sleep(4)  # the child builds its talker and serves it
+while ' ready: ' not in open(out.name).read():  # the child has built its talker and serves it
+    time.sleep(0.05)
+print('served', flush=True)
 os._exit(0)  # the "kernel" vanishes without a clean-up
 """
 
 
-def test_a_child_whose_kernel_vanished_exits_even_if_the_death_signal_is_lost():
+def test_a_child_whose_kernel_vanished_exits_even_if_the_death_signal_is_lost(tmp_path):
     import subprocess
     import sys
 
     import psutil
 
-    out = subprocess.run([sys.executable, "-c", ORPHAN_LAUNCHER], capture_output=True, text=True,
-                         timeout=60).stdout
+    launcher = [sys.executable, "-c", ORPHAN_LAUNCHER, str(tmp_path / "child.out")]
+    out = subprocess.run(launcher, capture_output=True, text=True, timeout=60).stdout
     pid = int(out.split()[0])
+    assert out.split()[1:] == ["served"], out  # the child was serving when its kernel vanished
 
     def gone() -> bool:
         try:
