@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from .conftest import REPO
@@ -63,8 +65,8 @@ def test_rerunning_cells_leaves_no_duplicates(kernel):
         out, error = kernel.run(SETUP)
         assert error is None, out
     out, error = kernel.run(
-        "import threading, time\n"
-        "time.sleep(1.0)\n"
+        "import threading\n"
+        "rt.wait_until(lambda: len(rt.graph_nodes()) >= 2, 10, 'the graph to list the nodes')\n"
         "print(rt.nodes(), rt.graph_nodes())\n"
         "print(sum(t.name == 'ros-executor' for t in threading.enumerate()))"
     )
@@ -78,10 +80,25 @@ def test_callback_output_goes_to_the_node_console_not_the_running_cell(kernel):
     out, error = kernel.run(PRINTER)
     assert error is None, out
     assert out == ""  # the console shows nothing until the node writes something
-    out, error = kernel.run("import time; time.sleep(1.0); print('other cell done')")
+    # No window: this cell runs until three more ticks reached the node's console, so a tick routed to the
+    # running cell instead would show in its output.
+    out, error = kernel.run(
+        "ticks = lambda: rt._router.console_for('printer').text().count('tick from the printer')\n"
+        "seen = ticks()\n"
+        "rt.wait_until(lambda: ticks() >= seen + 3, 10, 'three ticks in the console of /printer')\n"
+        "print('other cell done')"
+    )
     assert error is None
     assert out == "other cell done\n"
-    consoles = [data for data in kernel.displays.values() if "console of /printer" in data["text/plain"]]
+
+    def printer_consoles() -> list[dict]:
+        return [data for data in kernel.displays.values() if "console of /printer" in data["text/plain"]]
+
+    # The console reaches the frontend on the kernel's next refresh (every 0.2 s): idle cells take its update.
+    deadline = time.monotonic() + 10
+    while not printer_consoles() and time.monotonic() < deadline:
+        kernel.run("pass")
+    consoles = printer_consoles()
     assert len(consoles) == 1, kernel.displays  # under the cell that added the node, updated in place
     assert "tick from the printer" in consoles[0]["text/plain"]
     assert "tick from the printer" in consoles[0]["text/html"]
