@@ -179,15 +179,15 @@ def test_invalid_topic_names_are_named(name):
 
 
 ORPHAN_LAUNCHER = """
-import os, signal, subprocess, sys, time
+import os, pathlib, signal, subprocess, sys, time
 signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})  # so the kernel-death signal is lost
 env = dict(os.environ, COURSE_PARENT_PID=str(os.getpid()))
-out = open(sys.argv[1], 'w')
+out = pathlib.Path(sys.argv[1])
 child = subprocess.Popen([sys.executable, '-m', 'course_helpers.core.child', 'run',
                           'course_helpers.nodes.chatter:Talker', '{}'], env=env,
-                         stdout=out, stderr=subprocess.DEVNULL)
+                         stdout=out.open('w'), stderr=subprocess.DEVNULL)
 print(child.pid, flush=True)
-while ' ready: ' not in open(out.name).read():  # the child has built its talker and serves it
+while ' ready: ' not in out.read_text():  # the child has built its talker and serves it
     time.sleep(0.05)
 print('served', flush=True)
 os._exit(0)  # the "kernel" vanishes without a clean-up

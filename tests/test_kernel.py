@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
+
+from course_helpers.core.waiting import wait_until
 
 from .conftest import REPO
 from .kernel_session import KernelSession
@@ -92,12 +92,11 @@ def test_callback_output_goes_to_the_node_console_not_the_running_cell(kernel):
     assert out == "other cell done\n"
 
     def printer_consoles() -> list[dict]:
+        kernel.run("pass")  # an idle cell takes the updates the kernel sent meanwhile
         return [data for data in kernel.displays.values() if "console of /printer" in data["text/plain"]]
 
-    # The console reaches the frontend on the kernel's next refresh (every 0.2 s): idle cells take its update.
-    deadline = time.monotonic() + 10
-    while not printer_consoles() and time.monotonic() < deadline:
-        kernel.run("pass")
+    # The console reaches the frontend on the kernel's next refresh (every 0.2 s).
+    wait_until(printer_consoles, 10, "the console of /printer to reach the frontend")
     consoles = printer_consoles()
     assert len(consoles) == 1, kernel.displays  # under the cell that added the node, updated in place
     assert "tick from the printer" in consoles[0]["text/plain"]
