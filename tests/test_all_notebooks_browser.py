@@ -188,13 +188,19 @@ def _screenshot_cell(notebook, description: str, picture: str) -> None:
 
 
 def _log_console(page) -> str:
-    """The text of JupyterLab's log console for the current notebook (opened for it)."""
-    page.evaluate("() => window.jupyterapp.commands.execute('logconsole:open', {insertMode: 'split-bottom'})")
+    """The text of JupyterLab's log console for the current notebook, once it has drawn every entry.
+
+    The panel draws the entries its log already holds after it appears. The sentinel is the panel's own
+    Add Checkpoint: it appends a rule to this notebook's log, after every entry already there, and the
+    panel draws entries in order, so once the rule shows, every earlier entry shows too."""
+    commands = "window.jupyterapp.commands"
+    page.evaluate(f"() => {commands}.execute('logconsole:open', {{insertMode: 'split-bottom'}})")
     panel = page.locator(".jp-LogConsolePanel")
     panel.first.wait_for(timeout=HANG_MS)
-    # A window, on purpose: the panel draws the entries its log already holds after it appears, and this
-    # test has no marker of when that is done. Load can only hide an entry (a missed error), never invent one.
-    time.sleep(1.0)
+    # enabled once the panel shows a notebook's log (its source is set)
+    page.wait_for_function(f"() => {commands}.isEnabled('logconsole:add-checkpoint')", timeout=HANG_MS)
+    page.evaluate(f"() => {commands}.execute('logconsole:add-checkpoint')")
+    panel.locator(".jp-OutputArea-output hr").last.wait_for(timeout=HANG_MS)
     return "\n".join(panel.locator(".jp-OutputArea-output").all_inner_texts())
 
 
