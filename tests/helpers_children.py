@@ -60,6 +60,18 @@ def start_program_tree() -> None:
     time.sleep(300)
 
 
+def block_holding_the_gil_when_stopped() -> None:
+    """A procedure whose clean-up blocks in C without releasing the GIL, as a hung library call can:
+    once it is stopped, no Python thread of the process runs again (the parent watchdog included)."""
+    import ctypes
+
+    report("waiting")
+    try:
+        time.sleep(300)
+    finally:
+        ctypes.PyDLL(None).sleep(300)  # libc's sleep(3), called with the GIL held
+
+
 def hold_a_named_node(name: str, participants: int = 1) -> None:
     """A procedure: ``participants`` participants in this process (a node ``<name>_<i>`` in each, on
     the domain of the course's environment), report 'ready' with this process's UDP ports, then wait

@@ -6,6 +6,7 @@ Python process that is SIGKILLed, and psutil to see what is left.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
 import subprocess
@@ -18,6 +19,7 @@ import pytest
 
 from course_helpers import CourseError
 from course_helpers.core import processes
+from course_helpers.core.child import DEADLINE_S
 from course_helpers.core.waiting import poll_until, wait_until
 
 from .conftest import REPO
@@ -137,3 +139,29 @@ def test_a_killed_kernels_childrens_grandchildren_go_too():
             kernel.kill()
             kernel.wait(10)
         _kill(tree)
+
+
+
+def _signal_main_thread(pid: int, sig: int) -> None:
+    """``sig`` to the main thread of process ``pid`` (glibc's tgkill), the thread where Python runs signal
+    handlers; ``os.kill`` lets Linux pick any thread of the process."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.tgkill(pid, pid, sig) != 0:
+        raise OSError(ctypes.get_errno(), f"tgkill({pid}, {sig}) failed")
+
+
+@pytest.mark.timeout(120)
+def test_a_child_whose_clean_up_hangs_holding_the_gil_still_ends_by_its_deadline():
+    """The child's clean-up blocks in C with the GIL held, so no Python thread of it runs again (its
+    parent watchdog included): the deadline its stop signal armed with the operating system ends it."""
+    child = processes.start("hung", processes.python_target_argv(
+        "tests.helpers_children:block_holding_the_gil_when_stopped"), group="test-hung")
+    try:
+        child.wait_for_report("waiting", 60)
+        _signal_main_thread(child.pid, signal.SIGTERM)
+        # a bound for a hang: the child's own deadline is DEADLINE_S after the stop signal
+        assert poll_until(lambda: not child.alive, DEADLINE_S + 15), (
+            f"the child still runs {DEADLINE_S + 15:g} s after its stop signal")
+        assert child.returncode == -signal.SIGALRM, f"it should end by its deadline, got {child.returncode}"
+    finally:
+        processes.stop(["hung"], group="test-hung")

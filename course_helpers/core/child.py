@@ -16,7 +16,10 @@ Either way the child asks Linux for SIGTERM when the kernel dies, exits at once 
 is already gone, and ends whatever it started when it exits (it is a child subreaper). A ``run``
 child also watches for the kernel going away (in case that signal is lost, as it can be when the
 kernel ends with ``os._exit``), and gives its clean-up :data:`CLEANUP_S` seconds before it
-simply exits, so no orphan keeps running.
+simply exits, so no orphan keeps running. That last step does not rely on Python: the first stop
+signal, or the watchdog, arms an interval timer whose SIGALRM ends the process by the operating
+system's default action, even while a hung call holds the GIL and no Python thread can run (the
+process's own children then get their death signal).
 """
 
 from __future__ import annotations
@@ -45,6 +48,9 @@ from course_helpers.core.waiting import poll_until
 PARENT_CHECK_S = 0.5  # how often the watchdog looks for the kernel
 KEEPER_NODE = "_course_child"  # hidden: holds the process's participant until its nodes have left
 DEPARTURE_S = 0.2  # s; from a stopping child's last node update to its participant's goodbye
+# s; from the first stop signal to the end of the process, by the operating system: after the watchdog's
+# own end (CLEANUP_S), which also ends the process's descendants, for a clean-up that hangs holding the GIL
+DEADLINE_S = CLEANUP_S + 2.0
 
 
 def load_target(spec: str):
@@ -58,16 +64,28 @@ def load_target(spec: str):
     return obj
 
 
+def _arm_deadline() -> None:
+    """End this process :data:`DEADLINE_S` from now, whatever its threads are doing (armed once).
+
+    SIGALRM with its default action terminates the process in the kernel, without running Python.
+    """
+    if signal.getitimer(signal.ITIMER_REAL)[0] == 0:
+        signal.setitimer(signal.ITIMER_REAL, DEADLINE_S)
+
+
 class _StopSignal:
-    """SIGTERM/SIGINT: while nodes are served, ask the serving loop to stop; before, exit."""
+    """SIGTERM/SIGINT: while nodes are served, ask the serving loop to stop; before, exit. Either way,
+    the stop has a deadline (:func:`_arm_deadline`)."""
 
     def __init__(self):
         self.event = threading.Event()
         self.serving = False
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)  # the deadline's signal ends the process
         signal.signal(signal.SIGTERM, self._handle)
         signal.signal(signal.SIGINT, self._handle)
 
     def _handle(self, _signum, _frame) -> None:
+        _arm_deadline()
         self.event.set()
         if not self.serving:
             raise SystemExit(0)  # stopped before (or instead of) serving nodes: end at once
@@ -83,6 +101,7 @@ def _watch_parent(stop: _StopSignal) -> None:
         poll_until(lambda: stop.event.is_set() or orphaned(), float("inf"), period=PARENT_CHECK_S,
                    wake_on=None)  # not woken by the node's callbacks
         stop.event.set()
+        _arm_deadline()  # the kernel is gone and its death signal may have been lost
         time.sleep(CLEANUP_S)  # the main thread exits long before this, unless its clean-up hangs
         end_descendants(0)
         os._exit(0)  # leave no orphan behind
