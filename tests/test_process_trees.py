@@ -141,7 +141,6 @@ def test_a_killed_kernels_childrens_grandchildren_go_too():
         _kill(tree)
 
 
-
 def _signal_main_thread(pid: int, sig: int) -> None:
     """``sig`` to the main thread of process ``pid`` (glibc's tgkill), the thread where Python runs signal
     handlers; ``os.kill`` lets Linux pick any thread of the process."""
