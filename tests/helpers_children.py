@@ -65,8 +65,8 @@ def block_holding_the_gil_when_stopped() -> None:
     once it is stopped, no Python thread of the process runs again (the parent watchdog included)."""
     import ctypes
 
-    report("waiting")
-    try:
+    try:  # the report inside: a stop signal that comes while report() still returns hangs here too
+        report("waiting")
         time.sleep(300)
     finally:
         ctypes.PyDLL(None).sleep(300)  # libc's sleep(3), called with the GIL held
