@@ -8,6 +8,7 @@ solutions also check that the tables cover every criterion the checkers report.
 
 from __future__ import annotations
 
+import re
 import time
 
 import pytest
@@ -21,6 +22,7 @@ from std_srvs.srv import SetBool, Trigger
 
 from course_helpers.checks import ch04_services as ch04_checks
 from course_helpers.checks.ch04_services import BATTERY_CASES, check_battery_server, check_relay_server
+from course_helpers.core.verdict import ATTEMPTS
 from course_helpers.solutions.ch04_services import BatteryMonitor, SumRelay
 from tools.busy_loops import busy_loops
 
@@ -420,12 +422,16 @@ def test_relay_checker_asks_again_on_a_busy_machine_when_an_answer_is_missing(rt
     with busy_loops(2):
         report = check_relay_server(RelayThatLosesItsFirstRequest, rt)
     assert report.passed, report.summary()
-    # the criterion's client, then one for each attempt: attempt 2 asks from a pair that lost nothing
-    assert len(clients) >= 4, f"{len(clients)} client(s) for the criterion and three attempts"
     first = next(c for c in report.criteria if c.name == "it answers 2 + 3 = 5")
-    assert first.detail == ("got 5; met on attempt 2 on a busy machine; attempt 1 missed: it answers 2 + 3 "
-                            "without a deadlock (no answer within 1 s (your node's callback received 1 of 1 "
-                            "request(s) and returned 0; the backend answered 0))"), first.detail
+    # Which attempt the lost request costs depends on the load: attempt 1's request may reach the relay only
+    # after its client gave up, and then the first request the relay sees, and loses, is attempt 2's.
+    met = re.fullmatch(r"got 5; met on attempt (\d+) on a busy machine; attempt 1 missed: it answers 2 \+ 3 "
+                       r"without a deadlock \(no answer within 1 s \(your node's callback received [01] of 1 "
+                       r"request\(s\) and returned 0; the backend answered 0\)\)", first.detail)
+    assert met and 2 <= int(met.group(1)) <= ATTEMPTS, first.detail
+    # the criterion's client, then one for each attempt: a later attempt asks from a pair that lost nothing
+    attempts = int(met.group(1))
+    assert len(clients) >= 1 + attempts, f"{len(clients)} client(s) for the criterion and {attempts} attempts"
 
 
 COVERED = {"check_battery_server": _covered(BATTERY_WRONG), "check_relay_server": _covered(RELAY_WRONG)}
